@@ -1,0 +1,47 @@
+use super::{Accel, AccelInfo, Primitives};
+use crate::geometry::{Hit, Ray, RayQuery};
+
+/// Tests every primitive: the reference every other structure is checked against.
+pub struct BruteForce<P: Primitives> {
+    prims: P,
+}
+
+impl<P: Primitives> BruteForce<P> {
+    pub fn new(prims: P) -> Self {
+        BruteForce { prims }
+    }
+}
+
+impl<P: Primitives> Accel for BruteForce<P> {
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        let mut best: Option<Hit> = None;
+        let mut tmax = q.tmax;
+        for i in 0..self.prims.count() {
+            if let Some(h) = self.prims.intersect(i, &q, tmax) {
+                tmax = h.t;
+                best = Some(Hit { t: h.t, prim: i as u32, u: h.u, v: h.v });
+            }
+        }
+        best
+    }
+
+    fn any_hit(&self, ray: &Ray) -> bool {
+        let Some(q) = RayQuery::new(ray) else {
+            return false;
+        };
+        (0..self.prims.count()).any(|i| self.prims.intersect(i, &q, q.tmax).is_some())
+    }
+
+    fn info(&self) -> AccelInfo {
+        AccelInfo {
+            name: "bruteforce",
+            primitives: self.prims.count(),
+            memory_bytes: self.prims.memory_bytes(),
+            leaves: 1,
+            nodes: 1,
+            sah_cost: self.prims.count() as f64,
+            ..Default::default()
+        }
+    }
+}

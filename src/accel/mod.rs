@@ -1,0 +1,168 @@
+//! Acceleration structures, all interchangeable behind [`Accel`].
+//!
+//! Each structure is built over one primitive set ([`Triangles`] or [`Spheres`], both
+//! implementing [`Primitives`]) and owns the copy of the primitive data it traverses, in
+//! the order its leaves want. [`SceneAccel`] holds one structure per primitive kind the
+//! scene actually has, so a scene without spheres never runs a sphere kernel.
+
+mod bruteforce;
+mod bvh2;
+mod primitives;
+
+pub use bruteforce::BruteForce;
+// pub use bvh2::{Bvh2, Bvh2Node};
+pub use primitives::{Primitives, Spheres, Triangles};
+
+use crate::error::{Error, Result};
+use crate::geometry::{Hit, Ray};
+use crate::scene::Scene;
+use std::str::FromStr;
+
+/// Closest-hit and any-hit queries over one primitive set.
+///
+/// Interval semantics for every implementation: a hit counts only if `tmin < t < tmax`
+/// (both strict), and an invalid ray (NaN/inf components, zero direction, empty interval)
+/// hits nothing. `Hit::prim` is the primitive's index in the set the structure was built
+/// from, whatever order the structure keeps internally.
+pub trait Accel: Send + Sync {
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit>;
+    fn any_hit(&self, ray: &Ray) -> bool;
+
+    /// Closest hits for a batch of rays. Structures with packet kernels override this.
+    fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.closest_hit(r);
+        }
+    }
+
+    /// Occlusion for a batch of rays. Structures with packet kernels override this.
+    fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.any_hit(r);
+        }
+    }
+
+    /// What was built and what it cost.
+    fn info(&self) -> AccelInfo;
+}
+
+/// Build statistics of one structure.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AccelInfo {
+    pub name: &'static str,
+    pub primitives: usize,
+    pub build_ms: f64,
+    pub nodes: usize,
+    pub leaves: usize,
+    pub max_depth: usize,
+    pub memory_bytes: usize,
+    /// SAH cost of the tree (traversal cost 1, intersection cost 1 per primitive,
+    /// normalised by the root area); 0 where it does not apply.
+    pub sah_cost: f64,
+}
+
+/// Which structure to build.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AccelKind {
+    BruteForce,
+    Bvh2,
+}
+
+impl AccelKind {
+    pub const ALL: &'static [AccelKind] = &[AccelKind::BruteForce, AccelKind::Bvh2];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AccelKind::BruteForce => "bruteforce",
+            AccelKind::Bvh2 => "bvh2",
+        }
+    }
+
+    /// Builds this structure over a primitive set.
+    pub fn build<P: Primitives + 'static>(self, prims: P) -> Box<dyn Accel> {
+        match self {
+            AccelKind::BruteForce => Box::new(BruteForce::new(prims)),
+            AccelKind::Bvh2 => todo!(),
+        }
+    }
+}
+
+impl FromStr for AccelKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        AccelKind::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<_> = AccelKind::ALL.iter().map(|k| k.name()).collect();
+                Error::parameter("accel", format!("unknown structure '{s}', expected one of {}", names.join(", ")))
+            })
+    }
+}
+
+impl std::fmt::Display for AccelKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which primitive set a scene-level hit belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrimRef {
+    Triangle(u32),
+    Sphere(u32),
+}
+
+/// A closest hit in the whole scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneHit {
+    pub t: f32,
+    pub prim: PrimRef,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// One structure per primitive kind present in the scene.
+pub struct SceneAccel {
+    pub kind: AccelKind,
+    pub triangles: Option<Box<dyn Accel>>,
+    pub spheres: Option<Box<dyn Accel>>,
+}
+
+impl SceneAccel {
+    pub fn build(scene: &Scene, kind: AccelKind) -> SceneAccel {
+        let triangles = (!scene.mesh.is_empty()).then(|| kind.build(Triangles::from_mesh(&scene.mesh)));
+        let spheres = (!scene.spheres.is_empty()).then(|| kind.build(Spheres::from_set(&scene.spheres)));
+        SceneAccel { kind, triangles, spheres }
+    }
+
+    pub fn closest_hit(&self, ray: &Ray) -> Option<SceneHit> {
+        let mut best: Option<SceneHit> = None;
+        if let Some(a) = &self.triangles {
+            if let Some(h) = a.closest_hit(ray) {
+                best = Some(SceneHit { t: h.t, prim: PrimRef::Triangle(h.prim), u: h.u, v: h.v });
+            }
+        }
+        if let Some(a) = &self.spheres {
+            let mut r = *ray;
+            if let Some(b) = &best {
+                r.tmax = b.t;
+            }
+            if let Some(h) = a.closest_hit(&r) {
+                best = Some(SceneHit { t: h.t, prim: PrimRef::Sphere(h.prim), u: h.u, v: h.v });
+            }
+        }
+        best
+    }
+
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.triangles.as_ref().is_some_and(|a| a.any_hit(ray))
+            || self.spheres.as_ref().is_some_and(|a| a.any_hit(ray))
+    }
+
+    /// Build statistics of each structure present.
+    pub fn info(&self) -> Vec<AccelInfo> {
+        self.triangles.iter().chain(self.spheres.iter()).map(|a| a.info()).collect()
+    }
+}

@@ -1,0 +1,128 @@
+use crate::geometry::{Aabb, PrimHit, RayQuery, intersect_sphere, intersect_triangle};
+use crate::scene::{SphereSet, TriangleMesh};
+use glam::Vec3;
+
+/// A set of primitives an acceleration structure can be built over.
+///
+/// Structures reorder primitives for locality with [`permute`](Primitives::permute)
+/// and keep the original index to report in hits.
+pub trait Primitives: Send + Sync + Sized {
+    fn count(&self) -> usize;
+    fn bounds(&self, i: usize) -> Aabb;
+    fn centroid(&self, i: usize) -> Vec3 {
+        self.bounds(i).center()
+    }
+    /// Closest intersection of primitive `i` inside `(q.tmin, tmax)`.
+    fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit>;
+    /// The same set in a new order: element `k` of the result is element `order[k]` of `self`.
+    fn permute(&self, order: &[u32]) -> Self;
+    /// Bytes of primitive data held.
+    fn memory_bytes(&self) -> usize;
+}
+
+/// Triangles, de-indexed: three corner arrays, so a test reads one contiguous record
+/// set with no index indirection.
+#[derive(Clone, Debug, Default)]
+pub struct Triangles {
+    pub v0: Vec<Vec3>,
+    pub v1: Vec<Vec3>,
+    pub v2: Vec<Vec3>,
+}
+
+impl Triangles {
+    pub fn from_mesh(mesh: &TriangleMesh) -> Self {
+        let mut t = Triangles::default();
+        for i in 0..mesh.len() {
+            let [a, b, c] = mesh.corners(i);
+            t.v0.push(a);
+            t.v1.push(b);
+            t.v2.push(c);
+        }
+        t
+    }
+
+    pub fn from_corners(corners: &[[Vec3; 3]]) -> Self {
+        Triangles {
+            v0: corners.iter().map(|c| c[0]).collect(),
+            v1: corners.iter().map(|c| c[1]).collect(),
+            v2: corners.iter().map(|c| c[2]).collect(),
+        }
+    }
+}
+
+impl Primitives for Triangles {
+    fn count(&self) -> usize {
+        self.v0.len()
+    }
+
+    fn bounds(&self, i: usize) -> Aabb {
+        let mut b = Aabb::from_point(self.v0[i]);
+        b.grow(self.v1[i]);
+        b.grow(self.v2[i]);
+        b
+    }
+
+    #[inline]
+    fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit> {
+        intersect_triangle(q, self.v0[i], self.v1[i], self.v2[i], tmax)
+    }
+
+    fn permute(&self, order: &[u32]) -> Self {
+        Triangles {
+            v0: order.iter().map(|&i| self.v0[i as usize]).collect(),
+            v1: order.iter().map(|&i| self.v1[i as usize]).collect(),
+            v2: order.iter().map(|&i| self.v2[i as usize]).collect(),
+        }
+    }
+
+    fn memory_bytes(&self) -> usize {
+        self.v0.len() * 36
+    }
+}
+
+/// Spheres: centres and radii.
+#[derive(Clone, Debug, Default)]
+pub struct Spheres {
+    pub center: Vec<Vec3>,
+    pub radius: Vec<f32>,
+}
+
+impl Spheres {
+    pub fn from_set(set: &SphereSet) -> Self {
+        Spheres {
+            center: (0..set.len()).map(|i| set.center(i)).collect(),
+            radius: set.radius.clone(),
+        }
+    }
+}
+
+impl Primitives for Spheres {
+    fn count(&self) -> usize {
+        self.radius.len()
+    }
+
+    fn bounds(&self, i: usize) -> Aabb {
+        let r = Vec3::splat(self.radius[i]);
+        Aabb::new(self.center[i] - r, self.center[i] + r)
+    }
+
+    fn centroid(&self, i: usize) -> Vec3 {
+        self.center[i]
+    }
+
+    #[inline]
+    fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit> {
+        intersect_sphere(q, self.center[i], self.radius[i], tmax).map(|t| PrimHit { t, u: 0.0, v: 0.0 })
+    }
+
+    fn permute(&self, order: &[u32]) -> Self {
+        Spheres {
+            center: order.iter().map(|&i| self.center[i as usize]).collect(),
+            radius: order.iter().map(|&i| self.radius[i as usize]).collect(),
+        }
+    }
+
+    fn memory_bytes(&self) -> usize {
+        self.radius.len() * 16
+    }
+}

@@ -1,0 +1,1 @@
+//! The throughput protocol of shared/BENCHMARK.md.

@@ -1,0 +1,112 @@
+use glam::Vec3;
+
+/// A ray with its parametric interval `[tmin, tmax]` and a time in the shutter interval
+/// (0 for scenes without motion).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+    pub time: f32,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Ray {
+            origin,
+            dir,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+            time: 0.0,
+        }
+    }
+
+    pub fn segment(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
+        Ray {
+            origin,
+            dir,
+            tmin,
+            tmax,
+            time: 0.0,
+        }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + t * self.dir
+    }
+
+    /// A ray that can hit anything: finite origin and direction, a non-zero direction
+    /// and a non-empty interval. Invalid rays (NaN, inf, zero direction) miss everything.
+    pub fn is_valid(&self) -> bool {
+        self.origin.is_finite()
+            && self.dir.is_finite()
+            && self.dir != Vec3::ZERO
+            && !self.tmin.is_nan()
+            && !self.tmax.is_nan()
+            && self.tmin <= self.tmax
+    }
+}
+
+/// A ray prepared for traversal: the reciprocal direction for slab tests and the
+/// shear constants of the watertight triangle test (Woop, Benthin, Wald 2013), computed
+/// once per ray instead of once per primitive.
+#[derive(Clone, Copy, Debug)]
+pub struct RayQuery {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// 1/dir per component. A +0.0 or -0.0 component gives +inf or -inf, which the slab
+    /// test handles (the interval is then the whole line or empty), never NaN unless the
+    /// origin lies exactly on the slab plane; see `Aabb::intersect`.
+    pub inv_dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+    pub time: f32,
+    /// Axis permutation: `kz` is the dominant direction axis.
+    pub kx: usize,
+    pub ky: usize,
+    pub kz: usize,
+    /// Shear constants: `sx = d[kx]/d[kz]`, `sy = d[ky]/d[kz]`, `sz = 1/d[kz]`.
+    pub sx: f32,
+    pub sy: f32,
+    pub sz: f32,
+}
+
+impl RayQuery {
+    /// Prepares a ray; `None` for an invalid ray (it can hit nothing).
+    pub fn new(ray: &Ray) -> Option<Self> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let d = ray.dir;
+        let a = d.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding of the projected triangle: swap when the dominant axis is negative.
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / d[kz];
+        Some(RayQuery {
+            origin: ray.origin,
+            dir: d,
+            inv_dir: Vec3::ONE / d,
+            tmin: ray.tmin,
+            tmax: ray.tmax,
+            time: ray.time,
+            kx,
+            ky,
+            kz,
+            sx: d[kx] * sz,
+            sy: d[ky] * sz,
+            sz,
+        })
+    }
+}

@@ -1,0 +1,1 @@
+//! Recursive Whitted-style ray tracer (scalar reference).

@@ -1,0 +1,1 @@
+//! Scene loading: TOML scene files and OBJ/MTL meshes.

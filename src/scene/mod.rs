@@ -1,0 +1,421 @@
+//! The scene, stored structure-of-arrays and immutable after load.
+//!
+//! Vertex positions live in three `f32` arrays, triangles in three index arrays, and
+//! every primitive carries a material id; spheres are arrays of centre, radius and
+//! material. Bounds, counts and the [`Features`] a scene uses are computed once, in
+//! [`SceneBuilder::finish`], which is also the last line of validation: every loader
+//! and generator goes through it, so no scene with NaN vertices or dangling indices
+//! can reach the renderer.
+
+mod camera;
+pub mod load;
+mod material;
+mod light;
+pub mod procedural;
+
+pub use camera::Camera;
+pub use light::Light;
+pub use material::{Checker, Material};
+
+use crate::error::{Error, Result};
+use crate::geometry::Aabb;
+use glam::Vec3;
+
+/// Triangle mesh, structure-of-arrays. All meshes of a scene are merged into one.
+#[derive(Clone, Debug, Default)]
+pub struct TriangleMesh {
+    pub xs: Vec<f32>,
+    pub ys: Vec<f32>,
+    pub zs: Vec<f32>,
+    /// Optional per-vertex shading normals (all three empty, or as long as `xs`).
+    pub nxs: Vec<f32>,
+    pub nys: Vec<f32>,
+    pub nzs: Vec<f32>,
+    /// Vertex indices of each triangle's corners.
+    pub i0: Vec<u32>,
+    pub i1: Vec<u32>,
+    pub i2: Vec<u32>,
+    /// Material id per triangle.
+    pub material: Vec<u32>,
+}
+
+impl TriangleMesh {
+    pub fn len(&self) -> usize {
+        self.i0.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.i0.is_empty()
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.xs.len()
+    }
+
+    #[inline]
+    pub fn vertex(&self, i: u32) -> Vec3 {
+        let i = i as usize;
+        Vec3::new(self.xs[i], self.ys[i], self.zs[i])
+    }
+
+    /// The three corners of triangle `t`.
+    #[inline]
+    pub fn corners(&self, t: usize) -> [Vec3; 3] {
+        [
+            self.vertex(self.i0[t]),
+            self.vertex(self.i1[t]),
+            self.vertex(self.i2[t]),
+        ]
+    }
+
+    pub fn has_normals(&self) -> bool {
+        !self.nxs.is_empty()
+    }
+
+    /// Unit geometric normal `normalize((v1 - v0) × (v2 - v0))`; zero for a degenerate triangle.
+    pub fn geometric_normal(&self, t: usize) -> Vec3 {
+        let [a, b, c] = self.corners(t);
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+
+    /// Interpolated shading normal at barycentrics `(u, v)`, or the geometric normal.
+    pub fn shading_normal(&self, t: usize, u: f32, v: f32) -> Vec3 {
+        if !self.has_normals() {
+            return self.geometric_normal(t);
+        }
+        let n = |i: u32| {
+            let i = i as usize;
+            Vec3::new(self.nxs[i], self.nys[i], self.nzs[i])
+        };
+        let s = (1.0 - u - v) * n(self.i0[t]) + u * n(self.i1[t]) + v * n(self.i2[t]);
+        let s = s.normalize_or_zero();
+        if s == Vec3::ZERO {
+            self.geometric_normal(t)
+        } else {
+            s
+        }
+    }
+
+    pub fn triangle_bounds(&self, t: usize) -> Aabb {
+        let [a, b, c] = self.corners(t);
+        let mut bb = Aabb::from_point(a);
+        bb.grow(b);
+        bb.grow(c);
+        bb
+    }
+}
+
+/// Spheres, structure-of-arrays.
+#[derive(Clone, Debug, Default)]
+pub struct SphereSet {
+    pub cx: Vec<f32>,
+    pub cy: Vec<f32>,
+    pub cz: Vec<f32>,
+    pub radius: Vec<f32>,
+    pub material: Vec<u32>,
+}
+
+impl SphereSet {
+    pub fn len(&self) -> usize {
+        self.radius.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.radius.is_empty()
+    }
+
+    #[inline]
+    pub fn center(&self, i: usize) -> Vec3 {
+        Vec3::new(self.cx[i], self.cy[i], self.cz[i])
+    }
+
+    pub fn sphere_bounds(&self, i: usize) -> Aabb {
+        let c = self.center(i);
+        let r = Vec3::splat(self.radius[i]);
+        Aabb::new(c - r, c + r)
+    }
+}
+
+/// What a scene contains, computed once at load. The pipeline is configured from this
+/// so that a scene pays only for what it uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Features {
+    pub triangles: bool,
+    pub spheres: bool,
+    pub shading_normals: bool,
+    pub diffuse: bool,
+    pub specular: bool,
+    pub mirror: bool,
+    pub glass: bool,
+    pub textures: bool,
+    pub emission: bool,
+    pub point_lights: bool,
+    pub directional_lights: bool,
+}
+
+impl Features {
+    /// Names of the features present, for stats and logs.
+    pub fn names(&self) -> Vec<&'static str> {
+        let all = [
+            (self.triangles, "triangles"),
+            (self.spheres, "spheres"),
+            (self.shading_normals, "shading_normals"),
+            (self.diffuse, "diffuse"),
+            (self.specular, "specular"),
+            (self.mirror, "mirror"),
+            (self.glass, "glass"),
+            (self.textures, "textures"),
+            (self.emission, "emission"),
+            (self.point_lights, "point_lights"),
+            (self.directional_lights, "directional_lights"),
+        ];
+        all.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect()
+    }
+}
+
+/// Render defaults a scene file may set; the command line overrides them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub max_depth: u32,
+    /// Paths whose throughput falls below this stop (the contribution cutoff).
+    pub min_contribution: f32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 512,
+            height: 512,
+            spp: 1,
+            max_depth: 8,
+            min_contribution: 1e-3,
+        }
+    }
+}
+
+/// A complete scene. Build one with [`SceneBuilder`], a loader in [`load`] or a
+/// generator in [`procedural`].
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub mesh: TriangleMesh,
+    pub spheres: SphereSet,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    pub camera: Camera,
+    pub background: Vec3,
+    pub ambient: Vec3,
+    pub settings: RenderSettings,
+    pub bounds: Aabb,
+    pub features: Features,
+}
+
+impl Scene {
+    pub fn primitive_count(&self) -> usize {
+        self.mesh.len() + self.spheres.len()
+    }
+}
+
+/// Collects geometry, materials and lights, and validates everything in [`finish`](Self::finish).
+#[derive(Clone, Debug, Default)]
+pub struct SceneBuilder {
+    pub mesh: TriangleMesh,
+    pub spheres: SphereSet,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    pub camera: Option<Camera>,
+    pub background: Vec3,
+    pub ambient: Vec3,
+    pub settings: RenderSettings,
+}
+
+impl SceneBuilder {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn add_material(&mut self, m: Material) -> u32 {
+        self.materials.push(m);
+        (self.materials.len() - 1) as u32
+    }
+
+    pub fn add_light(&mut self, l: Light) {
+        self.lights.push(l);
+    }
+
+    pub fn add_vertex(&mut self, p: Vec3) -> u32 {
+        self.mesh.xs.push(p.x);
+        self.mesh.ys.push(p.y);
+        self.mesh.zs.push(p.z);
+        (self.mesh.xs.len() - 1) as u32
+    }
+
+    pub fn add_triangle_indices(&mut self, a: u32, b: u32, c: u32, material: u32) {
+        self.mesh.i0.push(a);
+        self.mesh.i1.push(b);
+        self.mesh.i2.push(c);
+        self.mesh.material.push(material);
+    }
+
+    pub fn add_triangle(&mut self, v0: Vec3, v1: Vec3, v2: Vec3, material: u32) {
+        let a = self.add_vertex(v0);
+        let b = self.add_vertex(v1);
+        let c = self.add_vertex(v2);
+        self.add_triangle_indices(a, b, c, material);
+    }
+
+    /// A parallelogram `corner, corner + e1, corner + e1 + e2, corner + e2` as two triangles.
+    pub fn add_quad(&mut self, corner: Vec3, e1: Vec3, e2: Vec3, material: u32) {
+        let a = self.add_vertex(corner);
+        let b = self.add_vertex(corner + e1);
+        let c = self.add_vertex(corner + e1 + e2);
+        let d = self.add_vertex(corner + e2);
+        self.add_triangle_indices(a, b, c, material);
+        self.add_triangle_indices(a, c, d, material);
+    }
+
+    /// Appends an indexed mesh. `normals` is either empty or one per position; a mesh
+    /// without normals gets none, and if the scene mixes meshes with and without normals
+    /// the missing ones are filled with zero (meaning "use the geometric normal").
+    pub fn add_mesh(&mut self, positions: &[Vec3], normals: &[Vec3], indices: &[[u32; 3]], material: u32) {
+        let base = self.mesh.xs.len();
+        let had = self.mesh.has_normals();
+        let want = !normals.is_empty();
+        if want && !had {
+            self.mesh.nxs.resize(base, 0.0);
+            self.mesh.nys.resize(base, 0.0);
+            self.mesh.nzs.resize(base, 0.0);
+        }
+        for p in positions {
+            self.add_vertex(*p);
+        }
+        if want {
+            for n in normals {
+                self.mesh.nxs.push(n.x);
+                self.mesh.nys.push(n.y);
+                self.mesh.nzs.push(n.z);
+            }
+        } else if had {
+            let len = self.mesh.xs.len();
+            self.mesh.nxs.resize(len, 0.0);
+            self.mesh.nys.resize(len, 0.0);
+            self.mesh.nzs.resize(len, 0.0);
+        }
+        let base = base as u32;
+        for t in indices {
+            self.add_triangle_indices(base + t[0], base + t[1], base + t[2], material);
+        }
+    }
+
+    pub fn add_sphere(&mut self, center: Vec3, radius: f32, material: u32) {
+        self.spheres.cx.push(center.x);
+        self.spheres.cy.push(center.y);
+        self.spheres.cz.push(center.z);
+        self.spheres.radius.push(radius);
+        self.spheres.material.push(material);
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for i in 0..self.mesh.xs.len() {
+            b.grow(Vec3::new(self.mesh.xs[i], self.mesh.ys[i], self.mesh.zs[i]));
+        }
+        for i in 0..self.spheres.len() {
+            b = b.union(&self.spheres.sphere_bounds(i));
+        }
+        b
+    }
+
+    /// Validates and freezes the scene. Loaders check their input with locations first;
+    /// this is the final guarantee for every path into a [`Scene`].
+    pub fn finish(mut self) -> Result<Scene> {
+        let bad = |msg: String| Err(Error::parameter("scene", msg));
+        if self.materials.is_empty() {
+            self.materials.push(Material::default());
+        }
+        let nmat = self.materials.len() as u32;
+        let nv = self.mesh.xs.len() as u32;
+        for i in 0..self.mesh.xs.len() {
+            let p = Vec3::new(self.mesh.xs[i], self.mesh.ys[i], self.mesh.zs[i]);
+            if !p.is_finite() {
+                return bad(format!("vertex {i} is not finite: {p}"));
+            }
+        }
+        if self.mesh.has_normals() && self.mesh.nxs.len() != self.mesh.xs.len() {
+            return bad("normal count differs from vertex count".into());
+        }
+        for t in 0..self.mesh.len() {
+            for idx in [self.mesh.i0[t], self.mesh.i1[t], self.mesh.i2[t]] {
+                if idx >= nv {
+                    return bad(format!("triangle {t} uses vertex {idx}, but there are {nv} vertices"));
+                }
+            }
+            if self.mesh.material[t] >= nmat {
+                return bad(format!("triangle {t} uses material {}, but there are {nmat}", self.mesh.material[t]));
+            }
+        }
+        for i in 0..self.spheres.len() {
+            let c = self.spheres.center(i);
+            let r = self.spheres.radius[i];
+            if !c.is_finite() || !r.is_finite() || r <= 0.0 {
+                return bad(format!("sphere {i} has centre {c} and radius {r}: need finite values and radius > 0"));
+            }
+            if self.spheres.material[i] >= nmat {
+                return bad(format!("sphere {i} uses material {}, but there are {nmat}", self.spheres.material[i]));
+            }
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            m.validate().map_err(|e| Error::parameter("material", format!("material {i} ({}): {e}", m.name)))?;
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            l.validate().map_err(|e| Error::parameter("light", format!("light {i}: {e}")))?;
+        }
+        let s = &self.settings;
+        crate::integrator::validate_dimensions(s.width, s.height, s.spp, s.max_depth)?;
+
+        let bounds = self.bounds();
+        let camera = match self.camera {
+            Some(c) => {
+                c.validate().map_err(|e| Error::parameter("camera", e))?;
+                c
+            }
+            None => Camera::framing(&bounds),
+        };
+
+        let used = |id: u32| self.mesh.material.contains(&id) || self.spheres.material.contains(&id);
+        let mut features = Features {
+            triangles: !self.mesh.is_empty(),
+            spheres: !self.spheres.is_empty(),
+            shading_normals: self.mesh.has_normals() && !self.mesh.is_empty(),
+            point_lights: self.lights.iter().any(|l| matches!(l, Light::Point { .. })),
+            directional_lights: self.lights.iter().any(|l| matches!(l, Light::Directional { .. })),
+            ..Features::default()
+        };
+        for (i, m) in self.materials.iter().enumerate() {
+            if !used(i as u32) {
+                continue;
+            }
+            features.diffuse |= m.diffuse != Vec3::ZERO || m.checker.is_some();
+            features.specular |= m.specular != Vec3::ZERO;
+            features.mirror |= m.mirror != Vec3::ZERO;
+            features.glass |= m.is_transmissive();
+            features.textures |= m.checker.is_some();
+            features.emission |= m.emission != Vec3::ZERO;
+        }
+
+        Ok(Scene {
+            mesh: self.mesh,
+            spheres: self.spheres,
+            materials: self.materials,
+            lights: self.lights,
+            camera,
+            background: self.background,
+            ambient: self.ambient,
+            settings: self.settings,
+            bounds,
+            features,
+        })
+    }
+}

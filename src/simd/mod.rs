@@ -1,0 +1,1 @@
+//! SIMD lane types (filled by the SIMD-core work).
