@@ -10,7 +10,7 @@ mod bvh2;
 mod primitives;
 
 pub use bruteforce::BruteForce;
-// pub use bvh2::{Bvh2, Bvh2Node};
+pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use primitives::{Primitives, Spheres, Triangles};
 
 use crate::error::{Error, Result};
@@ -82,7 +82,7 @@ impl AccelKind {
     pub fn build<P: Primitives + 'static>(self, prims: P) -> Box<dyn Accel> {
         match self {
             AccelKind::BruteForce => Box::new(BruteForce::new(prims)),
-            AccelKind::Bvh2 => todo!(),
+            AccelKind::Bvh2 => Box::new(Bvh2::build(prims)),
         }
     }
 }

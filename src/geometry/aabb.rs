@@ -80,21 +80,29 @@ impl Aabb {
     /// Slab test (Kay-Kajiya). Returns the entry distance if the box overlaps
     /// `[tmin, tmax]`.
     ///
-    /// Numeric traps handled: a zero direction component gives `inv_dir = ±inf`, and
-    /// `(min - o) * inf` is ±inf (interval unbounded or empty, both right) unless the
-    /// origin lies exactly on the plane, where it is `0 * inf = NaN`. `f32::max`/`min`
-    /// return the non-NaN operand, so a NaN slab bound is ignored: the ray lies in the
-    /// slab's plane and is treated as inside it (conservative, never a false miss).
-    /// The far distance is scaled by `1 + 2 gamma(3)` (Ize 2013, "Robust BVH Ray
+    /// The near and far planes are chosen by the sign of each `inv_dir` component
+    /// rather than by `min`/`max` of the two distances, so an empty box (min > max) is
+    /// never hit, and `-0.0` selects the planes of a negative direction, as its
+    /// infinite reciprocal requires. Numeric traps handled: a zero direction component
+    /// gives `inv_dir = ±inf` and the slab interval is the whole line or empty; if the
+    /// origin lies exactly on a plane the product is `0 * inf = NaN`, and `f32::max`/
+    /// `min` return the non-NaN operand, so that bound is ignored: the ray lies in the
+    /// plane and is treated as inside the slab (conservative, never a false miss). The
+    /// far distance is scaled by `1 + 2 gamma(3)` (Ize 2013, "Robust BVH Ray
     /// Traversal") so that rounding never culls a box the ray touches.
     #[inline]
     pub fn intersect(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
-        let t0 = (self.min - origin) * inv_dir;
-        let t1 = (self.max - origin) * inv_dir;
-        let near = t0.min(t1);
-        let far = t0.max(t1);
-        let enter = tmin.max(near.x).max(near.y).max(near.z);
-        let exit = tmax.min(far.x).min(far.y).min(far.z) * ROBUST_FAR_SCALE;
+        let mut enter = tmin;
+        let mut exit = tmax;
+        for a in 0..3 {
+            let (near, far) = if inv_dir[a].is_sign_negative() {
+                (self.max[a], self.min[a])
+            } else {
+                (self.min[a], self.max[a])
+            };
+            enter = enter.max((near - origin[a]) * inv_dir[a]);
+            exit = exit.min((far - origin[a]) * inv_dir[a] * ROBUST_FAR_SCALE);
+        }
         if enter <= exit { Some(enter) } else { None }
     }
 }
