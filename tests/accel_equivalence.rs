@@ -17,7 +17,10 @@ fn bounds_of<P: Primitives>(p: &P) -> Aabb {
 /// duplicated triangles), different primitives at the same distance.
 fn assert_matches_bruteforce<P: Primitives + Clone + 'static>(name: &str, prims: P, rays: &[Ray]) {
     let reference = BruteForce::new(prims.clone());
-    for kind in AccelKind::ALL.iter().filter(|k| **k != AccelKind::BruteForce) {
+    for kind in AccelKind::ALL
+        .iter()
+        .filter(|k| **k != AccelKind::BruteForce)
+    {
         let accel = kind.build(prims.clone());
         let mismatches: Vec<String> = rays
             .par_iter()
@@ -31,8 +34,11 @@ fn assert_matches_bruteforce<P: Primitives + Clone + 'static>(name: &str, prims:
                     _ => false,
                 };
                 let occluded = accel.any_hit(r);
-                (!same || occluded != want.is_some())
-                    .then(|| format!("ray {i} {r:?}: brute force {want:?}, {kind} {got:?}, any_hit {occluded}"))
+                (!same || occluded != want.is_some()).then(|| {
+                    format!(
+                        "ray {i} {r:?}: brute force {want:?}, {kind} {got:?}, any_hit {occluded}"
+                    )
+                })
             })
             .collect();
         assert!(

@@ -20,7 +20,12 @@ impl<P: Primitives> Accel for BruteForce<P> {
         for i in 0..self.prims.count() {
             if let Some(h) = self.prims.intersect(i, &q, tmax) {
                 tmax = h.t;
-                best = Some(Hit { t: h.t, prim: i as u32, u: h.u, v: h.v });
+                best = Some(Hit {
+                    t: h.t,
+                    prim: i as u32,
+                    u: h.u,
+                    v: h.v,
+                });
             }
         }
         best

@@ -74,8 +74,15 @@ pub struct Bvh2<P: Primitives> {
 
 /// Intermediate tree of the parallel build, flattened afterwards.
 enum BuildNode {
-    Leaf { bounds: Aabb, start: usize, count: usize },
-    Interior { bounds: Aabb, children: Box<[BuildNode; 2]> },
+    Leaf {
+        bounds: Aabb,
+        start: usize,
+        count: usize,
+    },
+    Interior {
+        bounds: Aabb,
+        children: Box<[BuildNode; 2]>,
+    },
 }
 
 impl BuildNode {
@@ -100,7 +107,10 @@ struct Bin {
 
 impl Default for Bin {
     fn default() -> Self {
-        Bin { bounds: Aabb::EMPTY, count: 0 }
+        Bin {
+            bounds: Aabb::EMPTY,
+            count: 0,
+        }
     }
 }
 
@@ -115,10 +125,19 @@ impl<P: Primitives> Bvh2<P> {
         let bounds: Vec<Aabb> = (0..n).into_par_iter().map(|i| prims.bounds(i)).collect();
         let centroids: Vec<Vec3> = (0..n).into_par_iter().map(|i| prims.centroid(i)).collect();
         let mut ids: Vec<u32> = (0..n as u32).collect();
-        let builder = Builder { bounds: &bounds, centroids: &centroids, opts };
+        let builder = Builder {
+            bounds: &bounds,
+            centroids: &centroids,
+            opts,
+        };
         let mut nodes = Vec::with_capacity(2 * n.max(1));
         if n == 0 {
-            nodes.push(Bvh2Node { min: [f32::INFINITY; 3], first: 0, max: [f32::NEG_INFINITY; 3], count: 0 });
+            nodes.push(Bvh2Node {
+                min: [f32::INFINITY; 3],
+                first: 0,
+                max: [f32::NEG_INFINITY; 3],
+                count: 0,
+            });
         } else {
             let root = builder.build(&mut ids, 0, 0);
             flatten(&root, &mut nodes);
@@ -129,7 +148,9 @@ impl<P: Primitives> Bvh2<P> {
             name: "bvh2",
             primitives: n,
             nodes: nodes.len(),
-            memory_bytes: nodes.len() * std::mem::size_of::<Bvh2Node>() + ids.len() * 4 + prims.memory_bytes(),
+            memory_bytes: nodes.len() * std::mem::size_of::<Bvh2Node>()
+                + ids.len() * 4
+                + prims.memory_bytes(),
             ..Default::default()
         };
         if n > 0 {
@@ -139,7 +160,12 @@ impl<P: Primitives> Bvh2<P> {
             info.sah_cost = cost;
         }
         info.build_ms = start.elapsed().as_secs_f64() * 1e3;
-        Bvh2 { nodes, prims, prim_ids: ids, info }
+        Bvh2 {
+            nodes,
+            prims,
+            prim_ids: ids,
+            info,
+        }
     }
 }
 
@@ -148,7 +174,11 @@ impl Builder<'_> {
     fn build(&self, ids: &mut [u32], offset: usize, depth: usize) -> BuildNode {
         let n = ids.len();
         let (bounds, cbounds) = self.node_bounds(ids);
-        let leaf = || BuildNode::Leaf { bounds, start: offset, count: n };
+        let leaf = || BuildNode::Leaf {
+            bounds,
+            start: offset,
+            count: n,
+        };
         if n == 1 {
             return leaf();
         }
@@ -190,9 +220,15 @@ impl Builder<'_> {
                 || self.build(right_ids, offset + mid, depth + 1),
             )
         } else {
-            (self.build(left_ids, offset, depth + 1), self.build(right_ids, offset + mid, depth + 1))
+            (
+                self.build(left_ids, offset, depth + 1),
+                self.build(right_ids, offset + mid, depth + 1),
+            )
         };
-        BuildNode::Interior { bounds, children: Box::new([left, right]) }
+        BuildNode::Interior {
+            bounds,
+            children: Box::new([left, right]),
+        }
     }
 
     fn node_bounds(&self, ids: &[u32]) -> (Aabb, Aabb) {
@@ -247,7 +283,9 @@ impl Builder<'_> {
         };
         let empty = || vec![[Bin::default(); 3]; nb];
         let bins = if ids.len() >= PARALLEL_THRESHOLD * 4 {
-            ids.par_chunks(PARALLEL_THRESHOLD).map(|c| c.iter().fold(empty(), fill)).reduce(empty, merge)
+            ids.par_chunks(PARALLEL_THRESHOLD)
+                .map(|c| c.iter().fold(empty(), fill))
+                .reduce(empty, merge)
         } else {
             ids.iter().fold(empty(), fill)
         };
@@ -328,7 +366,12 @@ fn leaf_or_placeholder(node: &BuildNode) -> Bvh2Node {
         BuildNode::Leaf { start, count, .. } => (*start as u32, *count as u32),
         BuildNode::Interior { .. } => (0, 0),
     };
-    Bvh2Node { min: b.min.to_array(), first, max: b.max.to_array(), count }
+    Bvh2Node {
+        min: b.min.to_array(),
+        first,
+        max: b.max.to_array(),
+        count,
+    }
 }
 
 /// (leaf count, maximum depth, SAH cost normalised by the root's area).
@@ -373,7 +416,12 @@ impl<P: Primitives> Bvh2<P> {
                 for k in n.first as usize..(n.first + n.count) as usize {
                     if let Some(h) = self.prims.intersect(k, q, tmax) {
                         tmax = h.t;
-                        best = Some(Hit { t: h.t, prim: self.prim_ids[k], u: h.u, v: h.v });
+                        best = Some(Hit {
+                            t: h.t,
+                            prim: self.prim_ids[k],
+                            u: h.u,
+                            v: h.v,
+                        });
                     }
                 }
             } else {
@@ -479,7 +527,11 @@ mod tests {
             let x = (i % 37) as f32;
             let y = (i / 37) as f32;
             let z = ((i * 7919) % 13) as f32;
-            corners.push([Vec3::new(x, y, z), Vec3::new(x + 0.9, y, z), Vec3::new(x, y + 0.9, z + 0.3)]);
+            corners.push([
+                Vec3::new(x, y, z),
+                Vec3::new(x + 0.9, y, z),
+                Vec3::new(x, y + 0.9, z + 0.3),
+            ]);
         }
         Triangles::from_corners(&corners)
     }
@@ -494,7 +546,11 @@ mod tests {
                 for k in n.first..n.first + n.count {
                     seen[bvh.prim_ids[k as usize] as usize] += 1;
                     let pb = bvh.prims.bounds(k as usize);
-                    assert_eq!(n.bounds().union(&pb), n.bounds(), "leaf does not bound its primitive");
+                    assert_eq!(
+                        n.bounds().union(&pb),
+                        n.bounds(),
+                        "leaf does not bound its primitive"
+                    );
                 }
             } else {
                 for c in [n.first as usize, n.first as usize + 1] {
@@ -532,7 +588,9 @@ mod tests {
         assert!(empty.closest_hit(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
         assert!(!empty.any_hit(&Ray::new(Vec3::ZERO, Vec3::X)));
         let one = Bvh2::build(Triangles::from_corners(&[[Vec3::ZERO, Vec3::X, Vec3::Y]]));
-        let h = one.closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::Z)).unwrap();
+        let h = one
+            .closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::Z))
+            .unwrap();
         assert_eq!((h.prim, h.t), (0, 2.0));
     }
 }

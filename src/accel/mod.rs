@@ -7,10 +7,12 @@
 
 mod bruteforce;
 mod bvh2;
+mod bvh4;
 mod primitives;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
+pub use bvh4::{Bvh4, Bvh4Node, PACKET_MIN_ACTIVE};
 pub use primitives::{Primitives, Spheres, Triangles};
 
 use crate::error::{Error, Result};
@@ -66,15 +68,18 @@ pub struct AccelInfo {
 pub enum AccelKind {
     BruteForce,
     Bvh2,
+    Bvh4,
 }
 
 impl AccelKind {
-    pub const ALL: &'static [AccelKind] = &[AccelKind::BruteForce, AccelKind::Bvh2];
+    pub const ALL: &'static [AccelKind] =
+        &[AccelKind::BruteForce, AccelKind::Bvh2, AccelKind::Bvh4];
 
     pub fn name(self) -> &'static str {
         match self {
             AccelKind::BruteForce => "bruteforce",
             AccelKind::Bvh2 => "bvh2",
+            AccelKind::Bvh4 => "bvh4",
         }
     }
 
@@ -83,6 +88,7 @@ impl AccelKind {
         match self {
             AccelKind::BruteForce => Box::new(BruteForce::new(prims)),
             AccelKind::Bvh2 => Box::new(Bvh2::build(prims)),
+            AccelKind::Bvh4 => Box::new(Bvh4::build(prims)),
         }
     }
 }
@@ -96,7 +102,13 @@ impl FromStr for AccelKind {
             .find(|k| k.name() == s)
             .ok_or_else(|| {
                 let names: Vec<_> = AccelKind::ALL.iter().map(|k| k.name()).collect();
-                Error::parameter("accel", format!("unknown structure '{s}', expected one of {}", names.join(", ")))
+                Error::parameter(
+                    "accel",
+                    format!(
+                        "unknown structure '{s}', expected one of {}",
+                        names.join(", ")
+                    ),
+                )
             })
     }
 }
@@ -132,16 +144,27 @@ pub struct SceneAccel {
 
 impl SceneAccel {
     pub fn build(scene: &Scene, kind: AccelKind) -> SceneAccel {
-        let triangles = (!scene.mesh.is_empty()).then(|| kind.build(Triangles::from_mesh(&scene.mesh)));
-        let spheres = (!scene.spheres.is_empty()).then(|| kind.build(Spheres::from_set(&scene.spheres)));
-        SceneAccel { kind, triangles, spheres }
+        let triangles =
+            (!scene.mesh.is_empty()).then(|| kind.build(Triangles::from_mesh(&scene.mesh)));
+        let spheres =
+            (!scene.spheres.is_empty()).then(|| kind.build(Spheres::from_set(&scene.spheres)));
+        SceneAccel {
+            kind,
+            triangles,
+            spheres,
+        }
     }
 
     pub fn closest_hit(&self, ray: &Ray) -> Option<SceneHit> {
         let mut best: Option<SceneHit> = None;
         if let Some(a) = &self.triangles {
             if let Some(h) = a.closest_hit(ray) {
-                best = Some(SceneHit { t: h.t, prim: PrimRef::Triangle(h.prim), u: h.u, v: h.v });
+                best = Some(SceneHit {
+                    t: h.t,
+                    prim: PrimRef::Triangle(h.prim),
+                    u: h.u,
+                    v: h.v,
+                });
             }
         }
         if let Some(a) = &self.spheres {
@@ -150,7 +173,12 @@ impl SceneAccel {
                 r.tmax = b.t;
             }
             if let Some(h) = a.closest_hit(&r) {
-                best = Some(SceneHit { t: h.t, prim: PrimRef::Sphere(h.prim), u: h.u, v: h.v });
+                best = Some(SceneHit {
+                    t: h.t,
+                    prim: PrimRef::Sphere(h.prim),
+                    u: h.u,
+                    v: h.v,
+                });
             }
         }
         best
@@ -163,6 +191,10 @@ impl SceneAccel {
 
     /// Build statistics of each structure present.
     pub fn info(&self) -> Vec<AccelInfo> {
-        self.triangles.iter().chain(self.spheres.iter()).map(|a| a.info()).collect()
+        self.triangles
+            .iter()
+            .chain(self.spheres.iter())
+            .map(|a| a.info())
+            .collect()
     }
 }

@@ -18,6 +18,10 @@ pub trait Primitives: Send + Sync + Sized {
     fn permute(&self, order: &[u32]) -> Self;
     /// Bytes of primitive data held.
     fn memory_bytes(&self) -> usize;
+    /// The set as triangles, for structures with packed SIMD triangle leaves.
+    fn as_triangles(&self) -> Option<&Triangles> {
+        None
+    }
 }
 
 /// Triangles, de-indexed: three corner arrays, so a test reads one contiguous record
@@ -78,6 +82,10 @@ impl Primitives for Triangles {
     fn memory_bytes(&self) -> usize {
         self.v0.len() * 36
     }
+
+    fn as_triangles(&self) -> Option<&Triangles> {
+        Some(self)
+    }
 }
 
 /// Spheres: centres and radii.
@@ -112,7 +120,11 @@ impl Primitives for Spheres {
 
     #[inline]
     fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit> {
-        intersect_sphere(q, self.center[i], self.radius[i], tmax).map(|t| PrimHit { t, u: 0.0, v: 0.0 })
+        intersect_sphere(q, self.center[i], self.radius[i], tmax).map(|t| PrimHit {
+            t,
+            u: 0.0,
+            v: 0.0,
+        })
     }
 
     fn permute(&self, order: &[u32]) -> Self {

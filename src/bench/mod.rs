@@ -1,1 +1,524 @@
-//! The throughput protocol of shared/BENCHMARK.md.
+//! The throughput protocol of `shared/BENCHMARK.md`, shared by `packet-render bench` and
+//! the criterion benches: one fixed set of primary, shadow and diffuse rays over a
+//! mesh, timed per tracing mode, with the checksums other tracers must reproduce.
+//!
+//! Reading of the protocol, matching `shared/anchors/embree/src/protocol.h`: framing
+//! and camera basis in f64 rounded to f32, ray directions normalised in f32 as
+//! `v * (1/|v|)`; shadow and diffuse rays start from the primary hits of the mode under
+//! test's own structure, computed once untimed; rays are generated and traced in 8x8
+//! tiles (ordered as 4x4 blocks, so 16 consecutive rays are a 4x4 pixel block and 8 a
+//! 4x2 block), and bands of 8 rows are handed to threads dynamically.
+
+use crate::accel::{Accel, AccelKind, Triangles};
+use crate::geometry::{Hit, Ray, orthonormal_basis};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+/// The three workloads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Workload {
+    Primary,
+    Shadow,
+    Diffuse,
+}
+
+impl Workload {
+    pub const ALL: [Workload; 3] = [Workload::Primary, Workload::Shadow, Workload::Diffuse];
+    pub fn name(self) -> &'static str {
+        match self {
+            Workload::Primary => "primary",
+            Workload::Shadow => "shadow",
+            Workload::Diffuse => "diffuse",
+        }
+    }
+}
+
+/// Scene framing of the protocol, in f64.
+#[derive(Clone, Copy, Debug)]
+pub struct Framing {
+    pub lo: DVec3,
+    pub hi: DVec3,
+    pub center: DVec3,
+    pub diagonal: f64,
+    pub eye: DVec3,
+    pub light: DVec3,
+}
+
+impl Framing {
+    /// `lo`, `hi` over all vertices of the file (used or not).
+    pub fn new(positions: &[Vec3]) -> Framing {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for p in positions {
+            lo = lo.min(p.as_dvec3());
+            hi = hi.max(p.as_dvec3());
+        }
+        let center = (lo + hi) * 0.5;
+        let diagonal = (hi - lo).length();
+        Framing {
+            lo,
+            hi,
+            center,
+            diagonal,
+            eye: center + DVec3::new(0.5, 0.3, 1.0).normalize() * (1.2 * diagonal),
+            light: center + DVec3::new(0.8, 1.2, 0.6) * diagonal,
+        }
+    }
+}
+
+/// The protocol's pinhole camera: basis in f64, rounded to f32.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchCamera {
+    pub eye: Vec3,
+    pub f: Vec3,
+    pub r: Vec3,
+    pub u: Vec3,
+    pub tan_half: f32,
+    pub aspect: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl BenchCamera {
+    pub fn new(fr: &Framing, width: u32, height: u32) -> Self {
+        let up = DVec3::Y;
+        let f = (fr.center - fr.eye).normalize();
+        let r = f.cross(up).normalize();
+        let u = r.cross(f);
+        BenchCamera {
+            eye: fr.eye.as_vec3(),
+            f: f.as_vec3(),
+            r: r.as_vec3(),
+            u: u.as_vec3(),
+            tan_half: (22.5f64.to_radians()).tan() as f32,
+            aspect: (width as f64 / height as f64) as f32,
+            width,
+            height,
+        }
+    }
+
+    #[inline]
+    pub fn dir(&self, x: u32, y: u32) -> Vec3 {
+        let sx = (2.0 * (x as f32 + 0.5) / self.width as f32 - 1.0) * self.tan_half * self.aspect;
+        let sy = (1.0 - 2.0 * (y as f32 + 0.5) / self.height as f32) * self.tan_half;
+        normalize(self.f + self.r * sx + self.u * sy)
+    }
+}
+
+/// `v * (1/|v|)`, the protocol's normalisation (not `v / |v|`).
+#[inline]
+fn normalize(v: Vec3) -> Vec3 {
+    v * (1.0 / v.length())
+}
+
+/// splitmix64 step, the protocol's per-pixel generator.
+#[inline]
+pub fn splitmix64(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The two uniforms of pixel `index`.
+#[inline]
+pub fn pixel_uniforms(index: u32) -> (f32, f32) {
+    let mut s = index as u64;
+    let u1 = (splitmix64(&mut s) >> 40) as f32 * (1.0 / 16_777_216.0);
+    let u2 = (splitmix64(&mut s) >> 40) as f32 * (1.0 / 16_777_216.0);
+    (u1, u2)
+}
+
+/// Cosine-weighted direction around unit `n` (Duff et al. basis).
+#[inline]
+pub fn cosine_dir(n: Vec3, u1: f32, u2: f32) -> Vec3 {
+    let r = u1.sqrt();
+    let phi = (2.0 * std::f64::consts::PI) as f32 * u2;
+    let (lx, ly) = (r * phi.cos(), r * phi.sin());
+    let lz = (1.0 - u1).max(0.0).sqrt();
+    let (t1, t2) = orthonormal_basis(n);
+    normalize(t1 * lx + t2 * ly + n * lz)
+}
+
+/// A tracing mode under test: how a batch of rays (one 8x8 tile, 4x4-block ordered,
+/// compacted to valid rays) is traced.
+pub trait TraceMode: Sync {
+    fn name(&self) -> &'static str;
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]);
+    fn build_ms(&self) -> f64;
+}
+
+/// One ray at a time through [`Accel::closest_hit`] / [`Accel::any_hit`].
+pub struct SingleRay {
+    pub name: &'static str,
+    pub accel: Box<dyn Accel>,
+}
+
+impl TraceMode for SingleRay {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.accel.closest_hit(r);
+        }
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.accel.any_hit(r);
+        }
+    }
+    fn build_ms(&self) -> f64 {
+        self.accel.info().build_ms
+    }
+}
+
+/// The batch entry points of [`Accel`] (packet kernels where the structure has them).
+pub struct Batched {
+    pub name: &'static str,
+    pub accel: Box<dyn Accel>,
+}
+
+impl TraceMode for Batched {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.accel.closest_hit_batch(rays, out);
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        self.accel.any_hit_batch(rays, out);
+    }
+    fn build_ms(&self) -> f64 {
+        self.accel.info().build_ms
+    }
+}
+
+/// The modes `packet-render bench` knows, by name.
+pub const MODES: &[&str] = &["scalar-bvh2", "bvh4-single", "bvh4-packet"];
+
+/// Builds a mode over `tris` (the mesh in file order).
+pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
+    let tris = tris.clone();
+    match name {
+        "scalar-bvh2" => Some(Box::new(SingleRay {
+            name: "scalar-bvh2",
+            accel: AccelKind::Bvh2.build(tris),
+        })),
+        "bvh4-single" => Some(Box::new(SingleRay {
+            name: "bvh4-single",
+            accel: AccelKind::Bvh4.build(tris),
+        })),
+        "bvh4-packet" => Some(Box::new(Batched {
+            name: "bvh4-packet",
+            accel: AccelKind::Bvh4.build(tris),
+        })),
+        _ => None,
+    }
+}
+
+/// Per-pixel primary results: `t` and triangle (`u32::MAX` for a miss).
+#[derive(Clone, Debug)]
+pub struct PrimaryHits {
+    pub t: Vec<f32>,
+    pub prim: Vec<u32>,
+}
+
+/// Checksums of one workload pass.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Checksums {
+    pub rays: u64,
+    pub hits_or_occluded: u64,
+    pub sum_t: f64,
+}
+
+const TILE: u32 = 8;
+const BAND: u32 = 8;
+
+/// The fixed ray set over one mesh.
+pub struct Protocol {
+    pub tris: Triangles,
+    pub framing: Framing,
+    pub camera: BenchCamera,
+    /// Geometric normals per triangle (file order), the protocol's `n`.
+    pub normals: Vec<Vec3>,
+}
+
+/// Pixel coordinates of an 8x8 tile at (tx, ty) in 4x4-block order, clipped to the image.
+fn tile_pixels(tx: u32, ty: u32, w: u32, h: u32, out: &mut Vec<(u32, u32)>) {
+    out.clear();
+    for by in (0..TILE).step_by(4) {
+        for bx in (0..TILE).step_by(4) {
+            for y in 0..4 {
+                for x in 0..4 {
+                    let (px, py) = (tx + bx + x, ty + by + y);
+                    if px < w && py < h {
+                        out.push((px, py));
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Protocol {
+    pub fn new(positions: &[Vec3], tris: Triangles, width: u32, height: u32) -> Self {
+        let framing = Framing::new(positions);
+        let camera = BenchCamera::new(&framing, width, height);
+        let normals = (0..tris.v0.len())
+            .map(|i| normalize((tris.v1[i] - tris.v0[i]).cross(tris.v2[i] - tris.v0[i])))
+            .collect();
+        Protocol {
+            tris,
+            framing,
+            camera,
+            normals,
+        }
+    }
+
+    fn pixels(&self) -> usize {
+        (self.camera.width * self.camera.height) as usize
+    }
+
+    /// The secondary ray of pixel `i` for `workload`, from its primary hit.
+    #[inline]
+    fn secondary_ray(&self, workload: Workload, x: u32, y: u32, t: f32, prim: u32) -> Ray {
+        let cam = &self.camera;
+        let dir = cam.dir(x, y);
+        let p = cam.eye + dir * t;
+        let mut n = self.normals[prim as usize];
+        if n.dot(dir) > 0.0 {
+            n = -n;
+        }
+        let eps = (1e-4 * self.framing.diagonal) as f32;
+        let o = p + n * eps;
+        match workload {
+            Workload::Shadow => {
+                let to = self.framing.light.as_vec3() - o;
+                let tmax = to.length();
+                Ray::segment(o, to * (1.0 / tmax), 0.0, tmax)
+            }
+            _ => {
+                let (u1, u2) = pixel_uniforms(y * cam.width + x);
+                Ray::new(o, cosine_dir(n, u1, u2))
+            }
+        }
+    }
+
+    /// One pass of `workload` with `mode`; writes per-pixel results into `t_out` (hit
+    /// distance or NaN for a miss; for shadow rays 1.0 occluded / 0.0 free) and
+    /// `prim_out`. Returns the number of rays traced.
+    pub fn pass(
+        &self,
+        mode: &dyn TraceMode,
+        workload: Workload,
+        primary: Option<&PrimaryHits>,
+        t_out: &mut [f32],
+        prim_out: &mut [u32],
+    ) -> u64 {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let band_len = (BAND * w) as usize;
+        t_out
+            .par_chunks_mut(band_len)
+            .zip(prim_out.par_chunks_mut(band_len))
+            .enumerate()
+            .with_max_len(1)
+            .map(|(band, (t_band, prim_band))| {
+                let y0 = band as u32 * BAND;
+                let mut pixels = Vec::with_capacity(64);
+                let mut rays = Vec::with_capacity(64);
+                let mut slots = Vec::with_capacity(64);
+                let mut hits = vec![None; 64];
+                let mut occ = vec![false; 64];
+                let mut count = 0u64;
+                for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
+                    for tx in (0..w).step_by(TILE as usize) {
+                        tile_pixels(tx, ty, w, h, &mut pixels);
+                        rays.clear();
+                        slots.clear();
+                        for &(x, y) in &pixels {
+                            let local = ((y - y0) * w + x) as usize;
+                            match (workload, primary) {
+                                (Workload::Primary, _) => {
+                                    rays.push(Ray::new(self.camera.eye, self.camera.dir(x, y)));
+                                    slots.push(local);
+                                }
+                                (_, Some(p)) => {
+                                    let i = (y * w + x) as usize;
+                                    if p.prim[i] != u32::MAX {
+                                        rays.push(
+                                            self.secondary_ray(workload, x, y, p.t[i], p.prim[i]),
+                                        );
+                                        slots.push(local);
+                                    } else {
+                                        t_band[local] = f32::NAN;
+                                        prim_band[local] = u32::MAX;
+                                    }
+                                }
+                                (_, None) => unreachable!("secondary workloads need primary hits"),
+                            }
+                        }
+                        let n = rays.len();
+                        count += n as u64;
+                        if workload == Workload::Shadow {
+                            mode.occluded(&rays, &mut occ[..n]);
+                            for (k, &s) in slots.iter().enumerate() {
+                                t_band[s] = if occ[k] { 1.0 } else { 0.0 };
+                                prim_band[s] = 0;
+                            }
+                        } else {
+                            mode.closest(&rays, &mut hits[..n]);
+                            for (k, &s) in slots.iter().enumerate() {
+                                match hits[k] {
+                                    Some(hh) => {
+                                        t_band[s] = hh.t;
+                                        prim_band[s] = hh.prim;
+                                    }
+                                    None => {
+                                        t_band[s] = f32::NAN;
+                                        prim_band[s] = u32::MAX;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                count
+            })
+            .sum()
+    }
+
+    /// The untimed primary pass that shadow and diffuse rays start from.
+    pub fn primary_hits(&self, mode: &dyn TraceMode) -> PrimaryHits {
+        let mut t = vec![0.0; self.pixels()];
+        let mut prim = vec![0; self.pixels()];
+        self.pass(mode, Workload::Primary, None, &mut t, &mut prim);
+        PrimaryHits { t, prim }
+    }
+
+    /// Checksums of a pass's results, summed in f64 in pixel order.
+    pub fn checksums(workload: Workload, rays: u64, t: &[f32], prim: &[u32]) -> Checksums {
+        let mut c = Checksums {
+            rays,
+            hits_or_occluded: 0,
+            sum_t: 0.0,
+        };
+        for (tt, pp) in t.iter().zip(prim) {
+            match workload {
+                Workload::Shadow => {
+                    if *pp != u32::MAX && *tt == 1.0 {
+                        c.hits_or_occluded += 1;
+                    }
+                }
+                _ => {
+                    if *pp != u32::MAX {
+                        c.hits_or_occluded += 1;
+                        c.sum_t += *tt as f64;
+                    }
+                }
+            }
+        }
+        c
+    }
+
+    /// Times `reps` passes after one warm-up; returns the checksums and Mrays/s of each pass.
+    pub fn measure(
+        &self,
+        mode: &dyn TraceMode,
+        workload: Workload,
+        primary: Option<&PrimaryHits>,
+        reps: usize,
+    ) -> (Checksums, Vec<f64>) {
+        let mut t = vec![0.0; self.pixels()];
+        let mut prim = vec![0; self.pixels()];
+        let mut rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+        let mut rates = Vec::with_capacity(reps);
+        for _ in 0..reps {
+            let start = Instant::now();
+            rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+            rates.push(rays as f64 / start.elapsed().as_secs_f64() / 1e6);
+        }
+        (Self::checksums(workload, rays, &t, &prim), rates)
+    }
+}
+
+/// One row of the report: the JSON fields of the issue, plus the instruction set.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    pub tracer: &'static str,
+    pub mode: String,
+    pub workload: &'static str,
+    pub threads: usize,
+    pub rays: u64,
+    pub hits_or_occluded: u64,
+    pub sum_t: f64,
+    pub mrays_median: f64,
+    pub mrays_min: f64,
+    pub mrays_max: f64,
+    pub build_ms: f64,
+    pub isa: &'static str,
+}
+
+/// Median of a non-empty list.
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// The instruction set the kernels were compiled for.
+pub fn instruction_set() -> &'static str {
+    if cfg!(target_feature = "avx512f") {
+        "AVX-512"
+    } else if cfg!(target_feature = "avx2") {
+        "AVX2"
+    } else if cfg!(target_feature = "sse4.1") {
+        "SSE4.1"
+    } else if cfg!(target_feature = "sse2") {
+        "SSE2"
+    } else {
+        "scalar"
+    }
+}
+
+/// Runs every workload for one mode at one thread count (inside the caller's pool).
+pub fn run_mode(
+    protocol: &Protocol,
+    mode: &dyn TraceMode,
+    threads: usize,
+    reps: usize,
+    build_ms: f64,
+) -> Vec<BenchRow> {
+    let primary = protocol.primary_hits(mode);
+    Workload::ALL
+        .iter()
+        .map(|&w| {
+            let p = (w != Workload::Primary).then_some(&primary);
+            let (c, rates) = protocol.measure(mode, w, p, reps);
+            BenchRow {
+                tracer: "packet-render",
+                mode: mode.name().to_string(),
+                workload: w.name(),
+                threads,
+                rays: c.rays,
+                hits_or_occluded: c.hits_or_occluded,
+                sum_t: c.sum_t,
+                mrays_median: median(&rates),
+                mrays_min: rates.iter().copied().fold(f64::INFINITY, f64::min),
+                mrays_max: rates.iter().copied().fold(0.0, f64::max),
+                build_ms,
+                isa: instruction_set(),
+            }
+        })
+        .collect()
+}

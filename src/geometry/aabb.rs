@@ -108,7 +108,8 @@ impl Aabb {
 }
 
 /// `1 + 2 * gamma(3)` with `gamma(n) = n eps / (1 - n eps)`, eps = 2^-24 (pbrt-v3 §3.9.2).
-pub const ROBUST_FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+pub const ROBUST_FAR_SCALE: f32 =
+    1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 #[cfg(test)]
 mod tests {
@@ -137,18 +138,31 @@ mod tests {
             let d = Vec3::new(1.0, 0.0, dz);
             let inv = Vec3::ONE / d;
             // inside the slabs of y and z: hit
-            assert!(b.intersect(Vec3::new(-1.0, 0.5, 0.5), inv, 0.0, f32::INFINITY).is_some());
+            assert!(
+                b.intersect(Vec3::new(-1.0, 0.5, 0.5), inv, 0.0, f32::INFINITY)
+                    .is_some()
+            );
             // outside the z slab: miss whatever the sign of zero
-            assert!(b.intersect(Vec3::new(-1.0, 0.5, 1.5), inv, 0.0, f32::INFINITY).is_none());
+            assert!(
+                b.intersect(Vec3::new(-1.0, 0.5, 1.5), inv, 0.0, f32::INFINITY)
+                    .is_none()
+            );
             // origin exactly on the z = 1 plane: conservative hit
-            assert!(b.intersect(Vec3::new(-1.0, 0.5, 1.0), inv, 0.0, f32::INFINITY).is_some());
+            assert!(
+                b.intersect(Vec3::new(-1.0, 0.5, 1.0), inv, 0.0, f32::INFINITY)
+                    .is_some()
+            );
         }
     }
 
     #[test]
     fn empty_box_never_hit() {
         let d = Vec3::new(1.0, 1.0, 1.0).normalize();
-        assert!(Aabb::EMPTY.intersect(Vec3::ZERO, Vec3::ONE / d, 0.0, f32::INFINITY).is_none());
+        assert!(
+            Aabb::EMPTY
+                .intersect(Vec3::ZERO, Vec3::ONE / d, 0.0, f32::INFINITY)
+                .is_none()
+        );
         assert_eq!(Aabb::EMPTY.area(), 0.0);
     }
 }

@@ -7,7 +7,7 @@ mod ray;
 mod sphere;
 mod triangle;
 
-pub use aabb::Aabb;
+pub use aabb::{Aabb, ROBUST_FAR_SCALE};
 pub use offset::{offset_ray_origin, orthonormal_basis};
 pub use ray::{Ray, RayQuery};
 pub use sphere::intersect_sphere;

@@ -51,14 +51,22 @@ mod tests {
             for p in [Vec3::splat(s), Vec3::new(-s, s, -s), Vec3::new(s, 0.0, -s)] {
                 let o = offset_ray_origin(p, n);
                 assert!((o - p).dot(n) > 0.0, "scale {s}: offset not along n");
-                assert!((o - p).length() <= 1e-3 * p.length().max(1.0), "scale {s}: offset too large");
+                assert!(
+                    (o - p).length() <= 1e-3 * p.length().max(1.0),
+                    "scale {s}: offset too large"
+                );
             }
         }
     }
 
     #[test]
     fn basis_is_orthonormal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(1.0, 2.0, -3.0).normalize()] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(1.0, 2.0, -3.0).normalize(),
+        ] {
             let (t, b) = orthonormal_basis(n);
             assert!(t.dot(b).abs() < 1e-6 && t.dot(n).abs() < 1e-6 && b.dot(n).abs() < 1e-6);
             assert!((t.cross(b) - n).length() < 1e-5);

@@ -50,17 +50,43 @@ mod tests {
 
     #[test]
     fn analytic_roots() {
-        let t = intersect_sphere(&q(Vec3::new(0.0, 0.0, -5.0), Vec3::Z), Vec3::ZERO, 1.0, f32::INFINITY);
+        let t = intersect_sphere(
+            &q(Vec3::new(0.0, 0.0, -5.0), Vec3::Z),
+            Vec3::ZERO,
+            1.0,
+            f32::INFINITY,
+        );
         assert_eq!(t, Some(4.0));
         // from inside: the far root
         let t = intersect_sphere(&q(Vec3::ZERO, Vec3::X), Vec3::ZERO, 2.0, f32::INFINITY);
         assert_eq!(t, Some(2.0));
         // unnormalised direction: t scales
-        let t = intersect_sphere(&q(Vec3::new(0.0, 0.0, -5.0), 2.0 * Vec3::Z), Vec3::ZERO, 1.0, f32::INFINITY);
+        let t = intersect_sphere(
+            &q(Vec3::new(0.0, 0.0, -5.0), 2.0 * Vec3::Z),
+            Vec3::ZERO,
+            1.0,
+            f32::INFINITY,
+        );
         assert_eq!(t, Some(2.0));
         // miss and behind
-        assert!(intersect_sphere(&q(Vec3::new(0.0, 1.5, -5.0), Vec3::Z), Vec3::ZERO, 1.0, f32::INFINITY).is_none());
-        assert!(intersect_sphere(&q(Vec3::new(0.0, 0.0, 5.0), Vec3::Z), Vec3::ZERO, 1.0, f32::INFINITY).is_none());
+        assert!(
+            intersect_sphere(
+                &q(Vec3::new(0.0, 1.5, -5.0), Vec3::Z),
+                Vec3::ZERO,
+                1.0,
+                f32::INFINITY
+            )
+            .is_none()
+        );
+        assert!(
+            intersect_sphere(
+                &q(Vec3::new(0.0, 0.0, 5.0), Vec3::Z),
+                Vec3::ZERO,
+                1.0,
+                f32::INFINITY
+            )
+            .is_none()
+        );
     }
 
     #[test]

@@ -81,7 +81,13 @@ pub fn intersect_triangle(
 }
 
 /// The same test evaluated entirely in f64: the reference for error reports and tests.
-pub fn intersect_triangle_f64(origin: DVec3, dir: DVec3, v0: DVec3, v1: DVec3, v2: DVec3) -> Option<f64> {
+pub fn intersect_triangle_f64(
+    origin: DVec3,
+    dir: DVec3,
+    v0: DVec3,
+    v1: DVec3,
+    v2: DVec3,
+) -> Option<f64> {
     let e1 = v1 - v0;
     let e2 = v2 - v0;
     let p = dir.cross(e2);
@@ -116,20 +122,54 @@ mod tests {
 
     #[test]
     fn analytic_hit_and_barycentrics() {
-        let h = intersect_triangle(&q(Vec3::new(0.25, 0.5, 2.0), -Vec3::Z), V0, V1, V2, f32::INFINITY).unwrap();
+        let h = intersect_triangle(
+            &q(Vec3::new(0.25, 0.5, 2.0), -Vec3::Z),
+            V0,
+            V1,
+            V2,
+            f32::INFINITY,
+        )
+        .unwrap();
         assert_eq!(h.t, 2.0);
         assert!((h.u - 0.25).abs() < 1e-6 && (h.v - 0.5).abs() < 1e-6);
         // from behind, both faces are hit
-        let h = intersect_triangle(&q(Vec3::new(0.25, 0.25, -3.0), Vec3::Z), V0, V1, V2, f32::INFINITY).unwrap();
+        let h = intersect_triangle(
+            &q(Vec3::new(0.25, 0.25, -3.0), Vec3::Z),
+            V0,
+            V1,
+            V2,
+            f32::INFINITY,
+        )
+        .unwrap();
         assert_eq!(h.t, 3.0);
     }
 
     #[test]
     fn miss_outside_and_behind() {
-        assert!(intersect_triangle(&q(Vec3::new(0.75, 0.75, 1.0), -Vec3::Z), V0, V1, V2, f32::INFINITY).is_none());
-        assert!(intersect_triangle(&q(Vec3::new(0.25, 0.25, 1.0), Vec3::Z), V0, V1, V2, f32::INFINITY).is_none());
+        assert!(
+            intersect_triangle(
+                &q(Vec3::new(0.75, 0.75, 1.0), -Vec3::Z),
+                V0,
+                V1,
+                V2,
+                f32::INFINITY
+            )
+            .is_none()
+        );
+        assert!(
+            intersect_triangle(
+                &q(Vec3::new(0.25, 0.25, 1.0), Vec3::Z),
+                V0,
+                V1,
+                V2,
+                f32::INFINITY
+            )
+            .is_none()
+        );
         // beyond tmax
-        assert!(intersect_triangle(&q(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z), V0, V1, V2, 0.5).is_none());
+        assert!(
+            intersect_triangle(&q(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z), V0, V1, V2, 0.5).is_none()
+        );
     }
 
     #[test]
@@ -143,9 +183,15 @@ mod tests {
             let qq = q(o - d * 0.0, d);
             let h1 = intersect_triangle(&qq, V0, V1, V2, f32::INFINITY);
             let h2 = intersect_triangle(&qq, V1, v3, V2, f32::INFINITY);
-            let inside = o.x + 0.013 >= 0.0 && o.y - 0.007 >= 0.0 && o.x + 0.013 <= 1.0 && o.y - 0.007 <= 1.0;
+            let inside = o.x + 0.013 >= 0.0
+                && o.y - 0.007 >= 0.0
+                && o.x + 0.013 <= 1.0
+                && o.y - 0.007 <= 1.0;
             if inside {
-                assert!(h1.is_some() || h2.is_some(), "ray {i} slipped through the shared edge");
+                assert!(
+                    h1.is_some() || h2.is_some(),
+                    "ray {i} slipped through the shared edge"
+                );
             }
         }
     }
@@ -154,10 +200,22 @@ mod tests {
     fn axis_parallel_and_in_plane() {
         for d in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y] {
             // a ray lying in the triangle's plane never reports a hit
-            let h = intersect_triangle(&q(Vec3::new(0.2, 0.2, 0.0) - 3.0 * d, d), V0, V1, V2, f32::INFINITY);
+            let h = intersect_triangle(
+                &q(Vec3::new(0.2, 0.2, 0.0) - 3.0 * d, d),
+                V0,
+                V1,
+                V2,
+                f32::INFINITY,
+            );
             assert!(h.is_none());
         }
-        let h = intersect_triangle(&q(Vec3::new(0.1, 0.1, 5.0), Vec3::new(-0.0, 0.0, -1.0)), V0, V1, V2, f32::INFINITY);
+        let h = intersect_triangle(
+            &q(Vec3::new(0.1, 0.1, 5.0), Vec3::new(-0.0, 0.0, -1.0)),
+            V0,
+            V1,
+            V2,
+            f32::INFINITY,
+        );
         assert!((h.unwrap().t - 5.0).abs() < 5.0 * 1e-6);
     }
 
@@ -166,7 +224,14 @@ mod tests {
         let o = Vec3::new(0.3, 0.2, 7.0);
         let d = Vec3::new(-0.01, 0.02, -1.0).normalize();
         let h = intersect_triangle(&q(o, d), V0, V1, V2, f32::INFINITY).unwrap();
-        let r = intersect_triangle_f64(o.as_dvec3(), d.as_dvec3(), V0.as_dvec3(), V1.as_dvec3(), V2.as_dvec3()).unwrap();
+        let r = intersect_triangle_f64(
+            o.as_dvec3(),
+            d.as_dvec3(),
+            V0.as_dvec3(),
+            V1.as_dvec3(),
+            V2.as_dvec3(),
+        )
+        .unwrap();
         assert!(((h.t as f64 - r) / r).abs() < 1e-6);
     }
 }

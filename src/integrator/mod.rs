@@ -24,13 +24,22 @@ pub fn validate_dimensions(width: u32, height: u32, spp: u32, max_depth: u32) ->
         ));
     }
     if (width as u64) * (height as u64) > 1 << 30 {
-        return Err(Error::parameter("image size", format!("{width}x{height} exceeds 2^30 pixels")));
+        return Err(Error::parameter(
+            "image size",
+            format!("{width}x{height} exceeds 2^30 pixels"),
+        ));
     }
     if spp == 0 || spp > MAX_SPP {
-        return Err(Error::parameter("spp", format!("{spp}: samples per pixel must be between 1 and {MAX_SPP}")));
+        return Err(Error::parameter(
+            "spp",
+            format!("{spp}: samples per pixel must be between 1 and {MAX_SPP}"),
+        ));
     }
     if max_depth > MAX_DEPTH {
-        return Err(Error::parameter("max depth", format!("{max_depth}: must be at most {MAX_DEPTH}")));
+        return Err(Error::parameter(
+            "max depth",
+            format!("{max_depth}: must be at most {MAX_DEPTH}"),
+        ));
     }
     Ok(())
 }

@@ -58,7 +58,10 @@ impl Camera {
             return Err("up is parallel to the viewing direction".into());
         }
         if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
-            return Err(format!("fov must be in (0, 180) degrees, got {}", self.vfov_deg));
+            return Err(format!(
+                "fov must be in (0, 180) degrees, got {}",
+                self.vfov_deg
+            ));
         }
         Ok(())
     }

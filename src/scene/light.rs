@@ -13,12 +13,22 @@ pub enum Light {
 impl Light {
     pub fn validate(&self) -> Result<(), String> {
         match self {
-            Light::Point { position, intensity } => {
-                if !position.is_finite() || !intensity.is_finite() || intensity.min_element() < 0.0 {
-                    return Err("point light needs a finite position and a finite, non-negative intensity".into());
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                if !position.is_finite() || !intensity.is_finite() || intensity.min_element() < 0.0
+                {
+                    return Err(
+                        "point light needs a finite position and a finite, non-negative intensity"
+                            .into(),
+                    );
                 }
             }
-            Light::Directional { direction, irradiance } => {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => {
                 if !direction.is_finite() || direction.length_squared() == 0.0 {
                     return Err("directional light needs a finite, non-zero direction".into());
                 }

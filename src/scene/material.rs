@@ -105,12 +105,18 @@ impl Material {
             }
         }
         if let Some(c) = &self.checker {
-            if !(c.scale.is_finite() && c.scale > 0.0) || !c.color_a.is_finite() || !c.color_b.is_finite() {
+            if !(c.scale.is_finite() && c.scale > 0.0)
+                || !c.color_a.is_finite()
+                || !c.color_b.is_finite()
+            {
                 return Err("checker needs finite colours and a positive scale".into());
             }
         }
         if !(self.shininess.is_finite() && self.shininess >= 0.0) {
-            return Err(format!("shininess must be finite and >= 0, got {}", self.shininess));
+            return Err(format!(
+                "shininess must be finite and >= 0, got {}",
+                self.shininess
+            ));
         }
         if !(self.ior.is_finite() && self.ior > 0.0) {
             return Err(format!("ior must be finite and > 0, got {}", self.ior));

@@ -8,9 +8,9 @@
 //! can reach the renderer.
 
 mod camera;
+mod light;
 pub mod load;
 mod material;
-mod light;
 pub mod procedural;
 
 pub use camera::Camera;
@@ -279,7 +279,13 @@ impl SceneBuilder {
     /// Appends an indexed mesh. `normals` is either empty or one per position; a mesh
     /// without normals gets none, and if the scene mixes meshes with and without normals
     /// the missing ones are filled with zero (meaning "use the geometric normal").
-    pub fn add_mesh(&mut self, positions: &[Vec3], normals: &[Vec3], indices: &[[u32; 3]], material: u32) {
+    pub fn add_mesh(
+        &mut self,
+        positions: &[Vec3],
+        normals: &[Vec3],
+        indices: &[[u32; 3]],
+        material: u32,
+    ) {
         let base = self.mesh.xs.len();
         let had = self.mesh.has_normals();
         let want = !normals.is_empty();
@@ -349,28 +355,41 @@ impl SceneBuilder {
         for t in 0..self.mesh.len() {
             for idx in [self.mesh.i0[t], self.mesh.i1[t], self.mesh.i2[t]] {
                 if idx >= nv {
-                    return bad(format!("triangle {t} uses vertex {idx}, but there are {nv} vertices"));
+                    return bad(format!(
+                        "triangle {t} uses vertex {idx}, but there are {nv} vertices"
+                    ));
                 }
             }
             if self.mesh.material[t] >= nmat {
-                return bad(format!("triangle {t} uses material {}, but there are {nmat}", self.mesh.material[t]));
+                return bad(format!(
+                    "triangle {t} uses material {}, but there are {nmat}",
+                    self.mesh.material[t]
+                ));
             }
         }
         for i in 0..self.spheres.len() {
             let c = self.spheres.center(i);
             let r = self.spheres.radius[i];
             if !c.is_finite() || !r.is_finite() || r <= 0.0 {
-                return bad(format!("sphere {i} has centre {c} and radius {r}: need finite values and radius > 0"));
+                return bad(format!(
+                    "sphere {i} has centre {c} and radius {r}: need finite values and radius > 0"
+                ));
             }
             if self.spheres.material[i] >= nmat {
-                return bad(format!("sphere {i} uses material {}, but there are {nmat}", self.spheres.material[i]));
+                return bad(format!(
+                    "sphere {i} uses material {}, but there are {nmat}",
+                    self.spheres.material[i]
+                ));
             }
         }
         for (i, m) in self.materials.iter().enumerate() {
-            m.validate().map_err(|e| Error::parameter("material", format!("material {i} ({}): {e}", m.name)))?;
+            m.validate().map_err(|e| {
+                Error::parameter("material", format!("material {i} ({}): {e}", m.name))
+            })?;
         }
         for (i, l) in self.lights.iter().enumerate() {
-            l.validate().map_err(|e| Error::parameter("light", format!("light {i}: {e}")))?;
+            l.validate()
+                .map_err(|e| Error::parameter("light", format!("light {i}: {e}")))?;
         }
         let s = &self.settings;
         crate::integrator::validate_dimensions(s.width, s.height, s.spp, s.max_depth)?;
@@ -384,13 +403,17 @@ impl SceneBuilder {
             None => Camera::framing(&bounds),
         };
 
-        let used = |id: u32| self.mesh.material.contains(&id) || self.spheres.material.contains(&id);
+        let used =
+            |id: u32| self.mesh.material.contains(&id) || self.spheres.material.contains(&id);
         let mut features = Features {
             triangles: !self.mesh.is_empty(),
             spheres: !self.spheres.is_empty(),
             shading_normals: self.mesh.has_normals() && !self.mesh.is_empty(),
             point_lights: self.lights.iter().any(|l| matches!(l, Light::Point { .. })),
-            directional_lights: self.lights.iter().any(|l| matches!(l, Light::Directional { .. })),
+            directional_lights: self
+                .lights
+                .iter()
+                .any(|l| matches!(l, Light::Directional { .. })),
             ..Features::default()
         };
         for (i, m) in self.materials.iter().enumerate() {

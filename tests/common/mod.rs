@@ -51,7 +51,15 @@ pub fn bumpy_sphere(rings: usize, segments: usize, radius: f32) -> (Vec<Vec3>, V
         for s in 0..segments {
             let phi = std::f32::consts::TAU * s as f32 / segments as f32;
             let bump = 1.0 + 0.15 * (5.0 * theta).sin() * (3.0 * phi).cos();
-            pos.push(radius * bump * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
+            pos.push(
+                radius
+                    * bump
+                    * Vec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.cos(),
+                        theta.sin() * phi.sin(),
+                    ),
+            );
         }
     }
     pos.push(Vec3::new(0.0, -radius, 0.0));
@@ -64,7 +72,12 @@ pub fn bumpy_sphere(rings: usize, segments: usize, radius: f32) -> (Vec<Vec3>, V
     }
     for r in 1..rings - 1 {
         for s in 0..segments {
-            let (a, b, c, d) = (ring(r, s), ring(r, s + 1), ring(r + 1, s), ring(r + 1, s + 1));
+            let (a, b, c, d) = (
+                ring(r, s),
+                ring(r, s + 1),
+                ring(r + 1, s),
+                ring(r + 1, s + 1),
+            );
             tris.push([a, b, d]);
             tris.push([a, d, c]);
         }
@@ -73,8 +86,10 @@ pub fn bumpy_sphere(rings: usize, segments: usize, radius: f32) -> (Vec<Vec3>, V
 }
 
 pub fn triangles_of(pos: &[Vec3], tris: &[[u32; 3]]) -> Triangles {
-    let corners: Vec<[Vec3; 3]> =
-        tris.iter().map(|t| [pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]]).collect();
+    let corners: Vec<[Vec3; 3]> = tris
+        .iter()
+        .map(|t| [pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]])
+        .collect();
     Triangles::from_corners(&corners)
 }
 

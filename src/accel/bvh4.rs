@@ -1,0 +1,981 @@
+//! 4-wide BVH: the fast path.
+//!
+//! Built by collapsing the binned-SAH BVH2: each BVH4 node takes a BVH2 node's two
+//! children and repeatedly opens the child with the largest surface area until it has
+//! four (the greedy SAH-aware collapse of Wald et al. 2008, "Getting Rid of Packets").
+//! A node stores its children's bounds as lane arrays, so one 4-wide slab test covers
+//! all four children; leaves of a triangle mesh hold [`TriGroup4`]s, so one SIMD test
+//! covers four triangles. Other primitive kinds keep scalar leaves.
+//!
+//! Three traversals: single ray (`closest_single`, `any_single`), and coherent packets
+//! of [`PACKET_WIDTH`] rays (`closest_batch`/`any_batch` through the [`Accel`] batch
+//! entry points). A packet is split by direction octant and dominant axis so that each
+//! part shares its slab planes and its watertight shear; a part with few active rays
+//! left finishes a subtree ray by ray, as Embree's hybrid traversal does.
+
+use super::{Accel, AccelInfo, Bvh2, Bvh2BuildOptions, Primitives};
+use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
+use crate::simd::kernels::{
+    PacketShear, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
+};
+use crate::simd::{F4, Lanes, PACKET_WIDTH, Packet};
+use glam::Vec3;
+use std::time::Instant;
+
+/// A BVH4 node: the four children's bounds as lane arrays and packed child references.
+///
+/// `planes[0..3]` are `min_x, min_y, min_z` and `planes[3..6]` are `max_x, max_y, max_z`,
+/// each `[f32; 4]` with one lane per child, so the near plane of axis `a` for a ray with
+/// a negative direction component is `planes[a + 3]` and no per-ray shuffling is needed.
+/// Unused child slots have empty bounds (+inf..-inf), which no ray can enter.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Bvh4Node {
+    pub planes: [[f32; 4]; 6],
+    /// Child references: an interior node's index, or [`LEAF`] | count << 27 | first.
+    pub children: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
+const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 64);
+
+/// Leaf flag of a child reference. A leaf's `first` (27 bits) indexes triangle groups
+/// (triangle meshes) or primitives (other kinds); `count` (4 bits) is how many.
+pub const LEAF: u32 = 1 << 31;
+const COUNT_SHIFT: u32 = 27;
+const FIRST_MASK: u32 = (1 << COUNT_SHIFT) - 1;
+/// An unused child slot: a leaf with nothing in it (and empty bounds).
+pub const EMPTY_CHILD: u32 = LEAF;
+
+#[inline(always)]
+fn is_leaf(r: u32) -> bool {
+    r & LEAF != 0
+}
+
+#[inline(always)]
+fn leaf_range(r: u32) -> std::ops::Range<usize> {
+    let first = (r & FIRST_MASK) as usize;
+    let count = ((r & !LEAF) >> COUNT_SHIFT) as usize;
+    first..first + count
+}
+
+/// Traversal stack depth; the BVH2 depth bound (see `bvh2::STACK_SIZE`) bounds this too,
+/// since a BVH4 node pushes at most three entries per level it descends.
+const STACK: usize = 3 * super::bvh2::STACK_SIZE;
+
+/// A fixed-size traversal stack that is not zero-filled per ray (a 3 KB memset per ray
+/// cost 17 % of single-ray time). Entries below `len` are always initialised.
+struct Stack<T: Copy> {
+    items: [std::mem::MaybeUninit<T>; STACK],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline(always)]
+    fn new() -> Self {
+        Stack {
+            items: [const { std::mem::MaybeUninit::uninit() }; STACK],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, x: T) {
+        self.items[self.len].write(x);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: every slot below the old `len` was written by `push`.
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
+}
+
+/// Rays a packet part keeps traversing together; with fewer active rays it finishes the
+/// subtree ray by ray (measured: see README, "Packet threshold").
+pub const PACKET_MIN_ACTIVE: u32 = 3;
+
+/// What the leaves hold.
+enum Leaves<P> {
+    /// Triangle meshes: groups of four, SoA.
+    Triangles(Vec<TriGroup4>),
+    /// Anything else: the primitives in leaf order and their original indices.
+    Scalar { prims: P, ids: Vec<u32> },
+}
+
+pub struct Bvh4<P: Primitives> {
+    pub nodes: Vec<Bvh4Node>,
+    leaves: Leaves<P>,
+    root: u32,
+    info: AccelInfo,
+}
+
+/// BVH2 parameters that suit 4-wide leaves: leaves of up to four triangles, one group.
+pub fn bvh4_build_options() -> Bvh2BuildOptions {
+    Bvh2BuildOptions {
+        max_leaf: 4,
+        ..Bvh2BuildOptions::default()
+    }
+}
+
+impl<P: Primitives> Bvh4<P> {
+    pub fn build(prims: P) -> Self {
+        let start = Instant::now();
+        let bvh2 = Bvh2::build_with(prims, bvh4_build_options());
+        let mut b = Collapse {
+            bvh2: &bvh2,
+            nodes: Vec::with_capacity(bvh2.nodes.len() / 2 + 1),
+            groups: Vec::new(),
+        };
+        let triangles = bvh2.prims.as_triangles().is_some();
+        let root = if bvh2.prim_ids.is_empty() {
+            EMPTY_CHILD
+        } else {
+            b.collapse(0, triangles)
+        };
+        let Collapse { nodes, groups, .. } = b;
+        let n = bvh2.prim_ids.len();
+        let bvh2_info = bvh2.info();
+        let leaves = if triangles {
+            Leaves::Triangles(groups)
+        } else {
+            Leaves::Scalar {
+                prims: bvh2.prims,
+                ids: bvh2.prim_ids,
+            }
+        };
+        let leaf_bytes = match &leaves {
+            Leaves::Triangles(g) => g.len() * std::mem::size_of::<TriGroup4>(),
+            Leaves::Scalar { prims, ids } => prims.memory_bytes() + ids.len() * 4,
+        };
+        let mut bvh = Bvh4 {
+            nodes,
+            leaves,
+            root,
+            info: AccelInfo::default(),
+        };
+        let (leaf_count, depth) = bvh.shape();
+        bvh.info = AccelInfo {
+            name: "bvh4",
+            primitives: n,
+            build_ms: start.elapsed().as_secs_f64() * 1e3,
+            nodes: bvh.nodes.len(),
+            leaves: leaf_count,
+            max_depth: depth,
+            memory_bytes: bvh.nodes.len() * std::mem::size_of::<Bvh4Node>() + leaf_bytes,
+            sah_cost: bvh2_info.sah_cost,
+        };
+        bvh
+    }
+
+    /// (leaf count, depth).
+    fn shape(&self) -> (usize, usize) {
+        let (mut leaves, mut depth) = (0, 0);
+        let mut stack = vec![(self.root, 0usize)];
+        while let Some((r, d)) = stack.pop() {
+            depth = depth.max(d);
+            if is_leaf(r) {
+                leaves += usize::from(r != EMPTY_CHILD);
+            } else {
+                for &c in &self.nodes[r as usize].children {
+                    stack.push((c, d + 1));
+                }
+            }
+        }
+        (leaves, depth)
+    }
+
+    /// Bytes per primitive of nodes and leaves.
+    pub fn bytes_per_primitive(&self) -> f64 {
+        self.info.memory_bytes as f64 / self.info.primitives.max(1) as f64
+    }
+}
+
+struct Collapse<'a, P: Primitives> {
+    bvh2: &'a Bvh2<P>,
+    nodes: Vec<Bvh4Node>,
+    groups: Vec<TriGroup4>,
+}
+
+impl<P: Primitives> Collapse<'_, P> {
+    /// The BVH4 reference for the subtree of BVH2 node `i`.
+    fn collapse(&mut self, i: usize, triangles: bool) -> u32 {
+        let n = self.bvh2.nodes[i];
+        if n.is_leaf() {
+            return self.leaf(n.first as usize, n.count as usize, triangles);
+        }
+        let mut kids = vec![n.first as usize, n.first as usize + 1];
+        while kids.len() < 4 {
+            let open = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| !self.bvh2.nodes[**k].is_leaf())
+                .max_by(|a, b| {
+                    let area = |k: usize| self.bvh2.nodes[k].bounds().area();
+                    area(*a.1).total_cmp(&area(*b.1))
+                })
+                .map(|(pos, _)| pos);
+            let Some(pos) = open else { break };
+            let k = kids.swap_remove(pos);
+            let f = self.bvh2.nodes[k].first as usize;
+            kids.push(f);
+            kids.push(f + 1);
+        }
+        let index = self.nodes.len();
+        self.nodes.push(Bvh4Node {
+            planes: [
+                [f32::INFINITY; 4],
+                [f32::INFINITY; 4],
+                [f32::INFINITY; 4],
+                [f32::NEG_INFINITY; 4],
+                [f32::NEG_INFINITY; 4],
+                [f32::NEG_INFINITY; 4],
+            ],
+            children: [EMPTY_CHILD; 4],
+        });
+        for (slot, &k) in kids.iter().enumerate() {
+            let b = self.bvh2.nodes[k].bounds();
+            let r = self.collapse(k, triangles);
+            let node = &mut self.nodes[index];
+            for a in 0..3 {
+                node.planes[a][slot] = b.min[a];
+                node.planes[a + 3][slot] = b.max[a];
+            }
+            node.children[slot] = r;
+        }
+        index as u32
+    }
+
+    fn leaf(&mut self, first: usize, count: usize, triangles: bool) -> u32 {
+        if !triangles {
+            assert!(
+                count < 16 && first <= FIRST_MASK as usize,
+                "leaf exceeds the reference encoding"
+            );
+            return LEAF | (count as u32) << COUNT_SHIFT | first as u32;
+        }
+        let tris = self.bvh2.prims.as_triangles().expect("triangle leaves");
+        let start = self.groups.len();
+        for chunk in (first..first + count).collect::<Vec<_>>().chunks(4) {
+            let mut g = TriGroup4::EMPTY;
+            for (lane, &k) in chunk.iter().enumerate() {
+                g.set(
+                    lane,
+                    self.bvh2.prim_ids[k],
+                    [tris.v0[k], tris.v1[k], tris.v2[k]],
+                );
+            }
+            self.groups.push(g);
+        }
+        let ngroups = self.groups.len() - start;
+        assert!(
+            ngroups < 16 && start <= FIRST_MASK as usize,
+            "leaf exceeds the reference encoding"
+        );
+        LEAF | (ngroups as u32) << COUNT_SHIFT | start as u32
+    }
+}
+
+/// A ray prepared for 4-wide node tests: splatted origin and reciprocal direction, and
+/// the plane indices its direction signs select.
+struct NodeRay {
+    o: [F4; 3],
+    inv: [F4; 3],
+    /// `inv * (1 + 2 gamma(3))`: Ize's conservative far-plane scale folded into the
+    /// reciprocal once per ray instead of once per node.
+    inv_far: [F4; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+    tmin: F4,
+}
+
+impl NodeRay {
+    #[inline(always)]
+    fn new(q: &RayQuery) -> Self {
+        let near = [0, 1, 2].map(|a| {
+            if q.inv_dir[a].is_sign_negative() {
+                a + 3
+            } else {
+                a
+            }
+        });
+        NodeRay {
+            o: [
+                F4::splat(q.origin.x),
+                F4::splat(q.origin.y),
+                F4::splat(q.origin.z),
+            ],
+            inv: [
+                F4::splat(q.inv_dir.x),
+                F4::splat(q.inv_dir.y),
+                F4::splat(q.inv_dir.z),
+            ],
+            inv_far: [0, 1, 2].map(|a| F4::splat(q.inv_dir[a] * ROBUST_FAR_SCALE)),
+            near,
+            far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
+            tmin: F4::splat(q.tmin),
+        }
+    }
+
+    /// Slab test against the four children: entry distances and the bits of the
+    /// children entered within `[tmin, tmax]`. The same arithmetic as `Aabb::intersect`.
+    #[inline(always)]
+    fn test(&self, node: &Bvh4Node, tmax: f32) -> (F4, u32) {
+        let p = &node.planes;
+        let d = |plane: usize, a: usize| (F4::from_array(p[plane]) - self.o[a]) * self.inv[a];
+        let f = |plane: usize, a: usize| (F4::from_array(p[plane]) - self.o[a]) * self.inv_far[a];
+        let enter =
+            d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
+        let exit = f(self.far[0], 0)
+            .minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(F4::splat(tmax))));
+        (enter, enter.le(exit).bitmask())
+    }
+}
+
+/// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
+#[inline(always)]
+fn order_children(node: &Bvh4Node, enter: F4, mask: u32, stack: &mut Stack<(u32, f32)>) -> u32 {
+    let t = enter.to_array();
+    if mask & (mask - 1) == 0 {
+        return node.children[mask.trailing_zeros() as usize];
+    }
+    let mut hits = [(0u32, 0f32); 4];
+    let mut n = 0;
+    let mut m = mask;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        // insertion sort, far to near
+        let mut j = n;
+        while j > 0 && hits[j - 1].1 < t[i] {
+            hits[j] = hits[j - 1];
+            j -= 1;
+        }
+        hits[j] = (node.children[i], t[i]);
+        n += 1;
+        m &= m - 1;
+    }
+    for h in &hits[..n - 1] {
+        stack.push(*h);
+    }
+    hits[n - 1].0
+}
+
+impl<P: Primitives> Bvh4<P> {
+    /// Closest hit of one ray in the subtree `start`, with interval `(q.tmin, tmax)`.
+    #[inline]
+    fn closest_from(&self, q: &RayQuery, start: u32, mut tmax: f32) -> Option<Hit> {
+        let ray = NodeRay::new(q);
+        let mut best = None;
+        let mut stack = Stack::new();
+        let mut cur = start;
+        loop {
+            if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let (enter, mask) = ray.test(node, tmax);
+                if mask != 0 {
+                    cur = order_children(node, enter, mask, &mut stack);
+                    continue;
+                }
+            } else if let Some(h) = self.leaf_closest(q, cur, tmax) {
+                tmax = h.t;
+                best = Some(h);
+            }
+            loop {
+                let Some((r, d)) = stack.pop() else {
+                    return best;
+                };
+                if d <= tmax {
+                    cur = r;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
+    #[inline]
+    fn any_from(&self, q: &RayQuery, start: u32) -> bool {
+        let ray = NodeRay::new(q);
+        let mut stack: Stack<u32> = Stack::new();
+        let mut cur = start;
+        loop {
+            if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let (_, mask) = ray.test(node, q.tmax);
+                if mask != 0 {
+                    let mut m = mask;
+                    cur = node.children[m.trailing_zeros() as usize];
+                    m &= m - 1;
+                    while m != 0 {
+                        stack.push(node.children[m.trailing_zeros() as usize]);
+                        m &= m - 1;
+                    }
+                    continue;
+                }
+            } else if self.leaf_any(q, cur) {
+                return true;
+            }
+            match stack.pop() {
+                Some(r) => cur = r,
+                None => return false,
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn leaf_closest(&self, q: &RayQuery, r: u32, mut tmax: f32) -> Option<Hit> {
+        let mut best = None;
+        match &self.leaves {
+            Leaves::Triangles(groups) => {
+                for g in &groups[leaf_range(r)] {
+                    if let Some((lane, h)) = triangle4_closest(q, g, tmax) {
+                        tmax = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            prim: g.ids[lane],
+                            u: h.u,
+                            v: h.v,
+                        });
+                    }
+                }
+            }
+            Leaves::Scalar { prims, ids } => {
+                for k in leaf_range(r) {
+                    if let Some(h) = prims.intersect(k, q, tmax) {
+                        tmax = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            prim: ids[k],
+                            u: h.u,
+                            v: h.v,
+                        });
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    #[inline(always)]
+    fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
+        match &self.leaves {
+            Leaves::Triangles(groups) => groups[leaf_range(r)]
+                .iter()
+                .any(|g| triangle4_any(q, g, q.tmax)),
+            Leaves::Scalar { prims, .. } => {
+                leaf_range(r).any(|k| prims.intersect(k, q, q.tmax).is_some())
+            }
+        }
+    }
+
+    /// Closest hit of one ray (the single-ray SIMD kernel).
+    pub fn closest_single(&self, ray: &Ray) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        self.closest_from(&q, self.root, q.tmax)
+    }
+
+    /// Occlusion of one ray (the single-ray SIMD kernel).
+    pub fn any_single(&self, ray: &Ray) -> bool {
+        RayQuery::new(ray).is_some_and(|q| self.any_from(&q, self.root))
+    }
+}
+
+/// Packet traversal over lanes of type `L`.
+struct PacketRays<L: Lanes> {
+    o: [L; 3],
+    inv: [L; 3],
+    inv_far: [L; 3],
+    tmin: L,
+    tmax: L,
+    near: [usize; 3],
+    far: [usize; 3],
+    shear: PacketShear<L>,
+}
+
+/// Per-lane answers of a packet.
+struct PacketHits<L: Lanes> {
+    t: L::Array,
+    u: L::Array,
+    v: L::Array,
+    prim: [u32; 16],
+    hit: u32,
+}
+
+impl<P: Primitives> Bvh4<P> {
+    /// Traces `rays` (exactly `L::WIDTH`) as packets: lanes are grouped by direction
+    /// octant and dominant axis, each group traversed together; a packet whose rays fall
+    /// into more than two groups is incoherent and goes ray by ray instead.
+    fn packet_closest<L: Lanes>(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        let setup = PacketSetup::<L>::new(rays);
+        out.fill(None);
+        if !setup.coherent() || !matches!(self.leaves, Leaves::Triangles(_)) {
+            for_each_bit(setup.valid, |i| out[i] = self.closest_single(&rays[i]));
+            return;
+        }
+        for g in 0..setup.groups {
+            let p = setup.group(g);
+            let hits = self.packet_closest_group(&p, rays, setup.group_mask[g]);
+            for_each_bit(hits.hit, |i| {
+                out[i] = Some(Hit {
+                    t: hits.t.as_ref()[i],
+                    prim: hits.prim[i],
+                    u: hits.u.as_ref()[i],
+                    v: hits.v.as_ref()[i],
+                })
+            });
+        }
+    }
+
+    fn packet_closest_group<L: Lanes>(
+        &self,
+        p: &PacketRays<L>,
+        rays: &[Ray],
+        mask: u32,
+    ) -> PacketHits<L> {
+        let Leaves::Triangles(groups) = &self.leaves else {
+            unreachable!("packets need triangle leaves")
+        };
+        let mut tmax = p.tmax;
+        let mut res = PacketHits::<L> {
+            t: L::splat(0.0).to_array(),
+            u: L::splat(0.0).to_array(),
+            v: L::splat(0.0).to_array(),
+            prim: [u32::MAX; 16],
+            hit: 0,
+        };
+        let mut tu = L::splat(0.0);
+        let mut tv = L::splat(0.0);
+        let mut stack: Stack<(u32, L)> = Stack::new();
+        let mut cur = self.root;
+        let mut cur_enter = p.tmin;
+        loop {
+            let active = mask & cur_enter.le(tmax).bitmask();
+            if active == 0 {
+                // culled: every lane has a closer hit than this subtree's entry
+            } else if active.count_ones() < PACKET_MIN_ACTIVE {
+                // Too few rays left to share the work: finish the subtree ray by ray.
+                let tm = tmax.to_array();
+                let mut m = active;
+                let mut new_t = tmax.to_array();
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                    if let Some(h) = self.closest_from(q, cur, tm.as_ref()[i]) {
+                        new_t.as_mut()[i] = h.t;
+                        res.prim[i] = h.prim;
+                        res.u.as_mut()[i] = h.u;
+                        res.v.as_mut()[i] = h.v;
+                        res.hit |= 1 << i;
+                        let sel = L::mask_from_bits(1 << i);
+                        tu = L::select(sel, L::splat(h.u), tu);
+                        tv = L::select(sel, L::splat(h.v), tv);
+                    }
+                    m &= m - 1;
+                }
+                tmax = L::from_array(new_t);
+            } else if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let mut enters = [L::splat(0.0); 4];
+                let mut order = [(0usize, 0f32); 4];
+                let mut n = 0;
+                let rep = active.trailing_zeros() as usize;
+                for c in 0..4 {
+                    if node.children[c] == EMPTY_CHILD {
+                        continue;
+                    }
+                    let (enter, bits) = p.child_test(node, c, tmax);
+                    if bits & active != 0 {
+                        enters[c] = enter;
+                        // insertion sort, far to near, by the representative lane's entry
+                        let key = enter.to_array().as_ref()[rep];
+                        let mut j = n;
+                        while j > 0 && order[j - 1].1 < key {
+                            order[j] = order[j - 1];
+                            j -= 1;
+                        }
+                        order[j] = (c, key);
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    for &(c, _) in &order[..n - 1] {
+                        stack.push((node.children[c], enters[c]));
+                    }
+                    let c = order[n - 1].0;
+                    cur = node.children[c];
+                    cur_enter = enters[c];
+                    continue;
+                }
+            } else {
+                for g in &groups[leaf_range(cur)] {
+                    for lane in 0..4 {
+                        if g.ids[lane] == u32::MAX {
+                            continue;
+                        }
+                        let corners = g.corners(lane);
+                        let (t, u, v, bits, edge) =
+                            triangle_packet(&p.shear, &corners, tmax, active);
+                        let mut bits = bits;
+                        let (mut t, mut u, mut v) = (t, u, v);
+                        if edge != 0 {
+                            // exactly-zero edge functions: the scalar test with its f64 fallback
+                            let (mut ta, mut ua, mut va) =
+                                (t.to_array(), u.to_array(), v.to_array());
+                            let tm = tmax.to_array();
+                            let mut m = edge;
+                            while m != 0 {
+                                let i = m.trailing_zeros() as usize;
+                                let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                                if let Some(h) = crate::geometry::intersect_triangle(
+                                    q,
+                                    corners[0],
+                                    corners[1],
+                                    corners[2],
+                                    tm.as_ref()[i],
+                                ) {
+                                    ta.as_mut()[i] = h.t;
+                                    ua.as_mut()[i] = h.u;
+                                    va.as_mut()[i] = h.v;
+                                    bits |= 1 << i;
+                                }
+                                m &= m - 1;
+                            }
+                            (t, u, v) = (L::from_array(ta), L::from_array(ua), L::from_array(va));
+                        }
+                        if bits != 0 {
+                            let sel = L::mask_from_bits(bits);
+                            tmax = L::select(sel, t, tmax);
+                            tu = L::select(sel, u, tu);
+                            tv = L::select(sel, v, tv);
+                            res.hit |= bits;
+                            let mut m = bits;
+                            while m != 0 {
+                                res.prim[m.trailing_zeros() as usize] = g.ids[lane];
+                                m &= m - 1;
+                            }
+                        }
+                    }
+                }
+            }
+            match stack.pop() {
+                Some((r, e)) => {
+                    cur = r;
+                    cur_enter = e;
+                }
+                None => break,
+            }
+        }
+        res.t = tmax.to_array();
+        res.u = tu.to_array();
+        res.v = tv.to_array();
+        res
+    }
+
+    fn packet_any<L: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
+        let setup = PacketSetup::<L>::new(rays);
+        out.fill(false);
+        if !setup.coherent() || !matches!(self.leaves, Leaves::Triangles(_)) {
+            for_each_bit(setup.valid, |i| out[i] = self.any_single(&rays[i]));
+            return;
+        }
+        for g in 0..setup.groups {
+            let p = setup.group(g);
+            let occluded = self.packet_any_group(&p, rays, setup.group_mask[g]);
+            for_each_bit(occluded, |i| out[i] = true);
+        }
+    }
+
+    /// Bits of the lanes in `mask` that hit something within their interval.
+    fn packet_any_group<L: Lanes>(&self, p: &PacketRays<L>, rays: &[Ray], mask: u32) -> u32 {
+        let Leaves::Triangles(groups) = &self.leaves else {
+            unreachable!("packets need triangle leaves")
+        };
+        let mut occluded = 0u32;
+        let mut stack: Stack<(u32, L)> = Stack::new();
+        let mut cur = self.root;
+        let mut cur_enter = p.tmin;
+        loop {
+            let active = mask & !occluded & cur_enter.le(p.tmax).bitmask();
+            if active == 0 {
+            } else if active.count_ones() < PACKET_MIN_ACTIVE {
+                let mut m = active;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                    if self.any_from(q, cur) {
+                        occluded |= 1 << i;
+                    }
+                    m &= m - 1;
+                }
+            } else if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let mut first = None;
+                for c in 0..4 {
+                    if node.children[c] == EMPTY_CHILD {
+                        continue;
+                    }
+                    let (enter, bits) = p.child_test(node, c, p.tmax);
+                    if bits & active != 0 {
+                        match first {
+                            None => first = Some((node.children[c], enter)),
+                            Some(_) => stack.push((node.children[c], enter)),
+                        }
+                    }
+                }
+                if let Some((r, e)) = first {
+                    cur = r;
+                    cur_enter = e;
+                    continue;
+                }
+            } else {
+                'groups: for g in &groups[leaf_range(cur)] {
+                    for lane in 0..4 {
+                        if g.ids[lane] == u32::MAX {
+                            continue;
+                        }
+                        let live = active & !occluded;
+                        let corners = g.corners(lane);
+                        let (_, _, _, bits, edge) =
+                            triangle_packet(&p.shear, &corners, p.tmax, live);
+                        occluded |= bits;
+                        let mut m = edge;
+                        while m != 0 {
+                            let i = m.trailing_zeros() as usize;
+                            let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                            if crate::geometry::intersect_triangle(
+                                q, corners[0], corners[1], corners[2], q.tmax,
+                            )
+                            .is_some()
+                            {
+                                occluded |= 1 << i;
+                            }
+                            m &= m - 1;
+                        }
+                        if active & !occluded == 0 {
+                            break 'groups;
+                        }
+                    }
+                }
+            }
+            if mask & !occluded == 0 {
+                return occluded;
+            }
+            match stack.pop() {
+                Some((r, e)) => {
+                    cur = r;
+                    cur_enter = e;
+                }
+                None => return occluded,
+            }
+        }
+    }
+}
+
+impl<L: Lanes> PacketRays<L> {
+    /// Slab test of child `c` for every lane: entry distances and hit bits.
+    #[inline(always)]
+    fn child_test(&self, node: &Bvh4Node, c: usize, tmax: L) -> (L, u32) {
+        let p = &node.planes;
+        let d = |plane: usize, a: usize| (L::splat(p[plane][c]) - self.o[a]) * self.inv[a];
+        let f = |plane: usize, a: usize| (L::splat(p[plane][c]) - self.o[a]) * self.inv_far[a];
+        let enter =
+            d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
+        let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tmax)));
+        (enter, enter.le(exit).bitmask())
+    }
+}
+
+/// Calls `f` with the index of every set bit.
+#[inline(always)]
+fn for_each_bit(mut bits: u32, mut f: impl FnMut(usize)) {
+    while bits != 0 {
+        f(bits.trailing_zeros() as usize);
+        bits &= bits - 1;
+    }
+}
+
+/// A packet loaded into lanes, its valid lanes, and its lane groups of equal direction
+/// octant and dominant axis (at most three; more means incoherent). Validity, reciprocal
+/// and dominant axis are computed lane-parallel with the same operations as
+/// `Ray::is_valid` and `RayQuery::new`, so every lane agrees with the scalar path.
+struct PacketSetup<L: Lanes> {
+    o: [L; 3],
+    d: [L; 3],
+    inv: [L; 3],
+    tmin: L,
+    tmax: L,
+    valid: u32,
+    groups: usize,
+    group_mask: [u32; 3],
+    /// (octant sign bits, kz) per group.
+    group_key: [(u32, usize); 3],
+}
+
+impl<L: Lanes> PacketSetup<L> {
+    #[inline(always)]
+    fn new(rays: &[Ray]) -> Self {
+        let mut a = [L::splat(0.0).to_array(); 8];
+        for (i, r) in rays.iter().enumerate().take(L::WIDTH) {
+            let vals = [
+                r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax,
+            ];
+            for (k, v) in vals.into_iter().enumerate() {
+                a[k].as_mut()[i] = v;
+            }
+        }
+        let l = |k: usize| L::from_array(a[k]);
+        let (o, d) = ([l(0), l(1), l(2)], [l(3), l(4), l(5)]);
+        let (tmin, tmax) = (l(6), l(7));
+        let zero = L::splat(0.0);
+        let finite = o[0].is_finite()
+            & o[1].is_finite()
+            & o[2].is_finite()
+            & d[0].is_finite()
+            & d[1].is_finite()
+            & d[2].is_finite();
+        let nonzero = !(d[0].eq(zero) & d[1].eq(zero) & d[2].eq(zero)).bitmask();
+        // tmin <= tmax is false for NaN in either, matching `Ray::is_valid`.
+        let lanes = if L::WIDTH == 32 {
+            u32::MAX
+        } else {
+            (1u32 << L::WIDTH) - 1
+        };
+        let valid = finite.bitmask()
+            & nonzero
+            & tmin.le(tmax).bitmask()
+            & lanes
+            & ((1u64 << rays.len()) - 1) as u32;
+        let inv = [
+            L::splat(1.0) / d[0],
+            L::splat(1.0) / d[1],
+            L::splat(1.0) / d[2],
+        ];
+
+        // Dominant axis as in `RayQuery::new`: x if |x| >= |y| and |x| >= |z|, else y if |y| >= |z|, else z.
+        let abs = |v: L| L::select(v.lt(zero), zero - v, v);
+        let (ax, ay, az) = (abs(d[0]), abs(d[1]), abs(d[2]));
+        let is_x = (ay.le(ax) & az.le(ax)).bitmask();
+        let is_y = !is_x & az.le(ay).bitmask();
+        let signs = [d[0].sign_bits(), d[1].sign_bits(), d[2].sign_bits()];
+
+        let mut s = PacketSetup {
+            o,
+            d,
+            inv,
+            tmin,
+            tmax,
+            valid,
+            groups: 0,
+            group_mask: [0; 3],
+            group_key: [(0, 0); 3],
+        };
+        let mut rest = valid;
+        while rest != 0 {
+            let i = rest.trailing_zeros();
+            let octant = (signs[0] >> i & 1) | (signs[1] >> i & 1) << 1 | (signs[2] >> i & 1) << 2;
+            let kz = if is_x >> i & 1 == 1 {
+                0
+            } else if is_y >> i & 1 == 1 {
+                1
+            } else {
+                2
+            };
+            let same_octant = !(signs[0] ^ 0u32.wrapping_sub(octant & 1))
+                & !(signs[1] ^ 0u32.wrapping_sub(octant >> 1 & 1))
+                & !(signs[2] ^ 0u32.wrapping_sub(octant >> 2 & 1));
+            let same_axis = match kz {
+                0 => is_x,
+                1 => is_y,
+                _ => !is_x & !is_y,
+            };
+            let members = rest & same_octant & same_axis;
+            if s.groups == 3 {
+                s.groups = 4;
+                break;
+            }
+            s.group_mask[s.groups] = members;
+            s.group_key[s.groups] = (octant, kz);
+            s.groups += 1;
+            rest &= !members;
+        }
+        s
+    }
+
+    fn coherent(&self) -> bool {
+        self.groups <= 2
+    }
+
+    /// The traversal state of group `g`: its planes and watertight shear.
+    #[inline(always)]
+    fn group(&self, g: usize) -> PacketRays<L> {
+        let (octant, kz) = self.group_key[g];
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if octant >> kz & 1 == 1 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = L::splat(1.0) / self.d[kz];
+        let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
+        PacketRays {
+            o: self.o,
+            inv: self.inv,
+            inv_far: self.inv.map(|x| x * L::splat(ROBUST_FAR_SCALE)),
+            tmin: self.tmin,
+            tmax: self.tmax,
+            near,
+            far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
+            shear: PacketShear {
+                o: self.o,
+                kx,
+                ky,
+                kz,
+                sx: self.d[kx] * sz,
+                sy: self.d[ky] * sz,
+                sz,
+                tmin: self.tmin,
+            },
+        }
+    }
+}
+
+impl<P: Primitives> Accel for Bvh4<P> {
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_single(ray)
+    }
+
+    fn any_hit(&self, ray: &Ray) -> bool {
+        self.any_single(ray)
+    }
+
+    fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        // A partial last packet leaves its missing lanes invalid.
+        for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
+            self.packet_closest::<Packet>(r, o);
+        }
+    }
+
+    fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
+            self.packet_any::<Packet>(r, o);
+        }
+    }
+
+    fn info(&self) -> AccelInfo {
+        self.info.clone()
+    }
+}
+
+impl Bvh4Node {
+    /// Bounds of child slot `c`.
+    pub fn child_bounds(&self, c: usize) -> Aabb {
+        Aabb::new(
+            Vec3::new(self.planes[0][c], self.planes[1][c], self.planes[2][c]),
+            Vec3::new(self.planes[3][c], self.planes[4][c], self.planes[5][c]),
+        )
+    }
+}

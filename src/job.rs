@@ -1,0 +1,217 @@
+//! A render job as the CLI runs it: load, build, render, write, with timings and
+//! counts for the stats block. Kept in the library so tests and other front ends get
+//! the same behaviour as `packet-render render`.
+
+use crate::accel::{AccelInfo, AccelKind, SceneAccel};
+use crate::error::{Error, Result};
+use crate::integrator::{self, RenderOptions};
+use crate::scene::{self, Scene};
+use crate::stats::{PhaseTimes, RayCounts, ms_since};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Command-line overrides of the scene's render settings.
+#[derive(Clone, Debug, Default)]
+pub struct Overrides {
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub spp: Option<u32>,
+    pub max_depth: Option<u32>,
+}
+
+/// One render from a scene file to an image file.
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    pub scene: PathBuf,
+    pub output: PathBuf,
+    pub overrides: Overrides,
+    pub accel: AccelKind,
+    pub seed: u64,
+    /// Worker threads; 0 means all cores.
+    pub threads: usize,
+}
+
+/// What a render did, printed as the stats block and written by `--stats-json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderReport {
+    pub scene: String,
+    pub output: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub threads: usize,
+    pub seed: u64,
+    pub primitives: PrimitiveCounts,
+    pub features: Vec<&'static str>,
+    pub accel: Vec<AccelInfo>,
+    pub rays: RayTotals,
+    pub time_ms: PhaseTimes,
+    /// All rays traced per second of render time, in millions.
+    pub mrays_per_s: f64,
+    /// Samples whose radiance was NaN or infinite (written as black).
+    pub nonfinite_samples: u64,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PrimitiveCounts {
+    pub triangles: usize,
+    pub spheres: usize,
+    pub lights: usize,
+    pub materials: usize,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct RayTotals {
+    #[serde(flatten)]
+    pub by_kind: RayCounts,
+    pub total: u64,
+}
+
+/// Progress callback: (units done, units total).
+pub type Progress = Arc<dyn Fn(u64, u64) + Send + Sync>;
+
+impl RenderJob {
+    /// Runs the job in a thread pool of the requested size. Nothing is written unless
+    /// every step before the write succeeded, and the write itself is atomic.
+    pub fn run(&self, progress: Option<Progress>) -> Result<RenderReport> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(self.threads)
+            .build()
+            .map_err(|e| Error::parameter("threads", e.to_string()))?;
+        let threads = pool.current_num_threads();
+        pool.install(|| self.run_in_pool(threads, progress))
+    }
+
+    fn run_in_pool(&self, threads: usize, progress: Option<Progress>) -> Result<RenderReport> {
+        let mut time = PhaseTimes::default();
+        let t = Instant::now();
+        let scene = scene::load::load_scene(&self.scene)?;
+        time.load = ms_since(t);
+
+        let mut opts = self.options(&scene)?;
+        opts.progress = progress;
+
+        let t = Instant::now();
+        let accel = SceneAccel::build(&scene, self.accel);
+        time.build = ms_since(t);
+
+        let out = integrator::whitted::render(&scene, &accel, &opts);
+        time.render = out.render_ms;
+
+        let t = Instant::now();
+        out.film.save(&self.output)?;
+        time.write = ms_since(t);
+
+        let total = out.rays.total();
+        Ok(RenderReport {
+            scene: self.scene.display().to_string(),
+            output: self.output.display().to_string(),
+            width: opts.width,
+            height: opts.height,
+            spp: opts.spp,
+            threads,
+            seed: self.seed,
+            primitives: PrimitiveCounts {
+                triangles: scene.mesh.len(),
+                spheres: scene.spheres.len(),
+                lights: scene.lights.len(),
+                materials: scene.materials.len(),
+            },
+            features: scene.features.names(),
+            accel: accel.info(),
+            rays: RayTotals { by_kind: out.rays, total },
+            time_ms: time,
+            mrays_per_s: total as f64 / (time.render.max(1e-6) * 1e3),
+            nonfinite_samples: out.nonfinite_samples,
+        })
+    }
+
+    /// The scene's settings with the command-line overrides applied, validated.
+    pub fn options(&self, scene: &Scene) -> Result<RenderOptions> {
+        let mut o = RenderOptions::from_scene(scene);
+        let ov = &self.overrides;
+        o.width = ov.width.unwrap_or(o.width);
+        o.height = ov.height.unwrap_or(o.height);
+        o.spp = ov.spp.unwrap_or(o.spp);
+        o.max_depth = ov.max_depth.unwrap_or(o.max_depth);
+        o.seed = self.seed;
+        o.validate()?;
+        Ok(o)
+    }
+}
+
+impl RenderReport {
+    /// The human-readable stats block.
+    pub fn summary(&self) -> String {
+        let r = &self.rays.by_kind;
+        let accel: Vec<String> = self
+            .accel
+            .iter()
+            .map(|a| {
+                format!(
+                    "{} over {} prims: {} nodes, {} leaves, depth {}, SAH {:.2}, {:.1} MiB, {:.1} ms",
+                    a.name,
+                    a.primitives,
+                    a.nodes,
+                    a.leaves,
+                    a.max_depth,
+                    a.sah_cost,
+                    a.memory_bytes as f64 / (1 << 20) as f64,
+                    a.build_ms
+                )
+            })
+            .collect();
+        let t = &self.time_ms;
+        let mut s = String::new();
+        s += &format!(
+            "scene    {}: {} triangles, {} spheres, {} lights, {} materials\n",
+            self.scene, self.primitives.triangles, self.primitives.spheres, self.primitives.lights, self.primitives.materials
+        );
+        s += &format!("features {}\n", self.features.join(", "));
+        for a in accel {
+            s += &format!("accel    {a}\n");
+        }
+        s += &format!(
+            "image    {} ({}x{}, {} spp, seed {})\n",
+            self.output, self.width, self.height, self.spp, self.seed
+        );
+        s += &format!(
+            "rays     camera {}, shadow {}, reflection {}, refraction {}; total {}\n",
+            r.camera, r.shadow, r.reflection, r.refraction, self.rays.total
+        );
+        s += &format!(
+            "time     load {:.1} ms, build {:.1} ms, render {:.1} ms, write {:.1} ms; total {:.1} ms\n",
+            t.load,
+            t.build,
+            t.render,
+            t.write,
+            t.total()
+        );
+        s += &format!("speed    {:.2} Mrays/s on {} threads\n", self.mrays_per_s, self.threads);
+        if self.nonfinite_samples > 0 {
+            s += &format!("warning  {} samples were NaN or infinite and were written as black\n", self.nonfinite_samples);
+        }
+        s
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a
+/// rename, so an interrupted or failed write never leaves a truncated file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().ok_or_else(|| Error::parameter("output", format!("{} is not a file name", path.display())))?;
+    let tmp = dir.join(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })
+}

@@ -1,0 +1,208 @@
+//! SIMD twins of the scalar kernels in `geometry`: the same operations in the same
+//! order, lane by lane, so that results agree bit for bit with the scalar oracle (Rust
+//! never fuses a multiply and an add on its own, and neither do these kernels).
+
+use super::{F4, Lanes};
+use crate::geometry::{PrimHit, RayQuery, intersect_triangle};
+use glam::Vec3;
+
+/// Four triangles of a leaf, structure-of-arrays: `v[corner][axis][lane]`.
+///
+/// Corners rather than edges (`v0, e1, e2`) because the watertight test of Woop et al.
+/// translates each corner to the ray origin before shearing; edges would have to be
+/// turned back into corners per ray. Unused lanes hold NaN corners and id `u32::MAX`
+/// and are masked off before any hit is reported.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub struct TriGroup4 {
+    pub v: [[[f32; 4]; 3]; 3],
+    /// Original triangle index per lane; `u32::MAX` for an unused lane.
+    pub ids: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<TriGroup4>() == 160);
+
+impl TriGroup4 {
+    pub const EMPTY: TriGroup4 = TriGroup4 {
+        v: [[[f32::NAN; 4]; 3]; 3],
+        ids: [u32::MAX; 4],
+    };
+
+    pub fn set(&mut self, lane: usize, id: u32, corners: [Vec3; 3]) {
+        for (c, p) in corners.iter().enumerate() {
+            for axis in 0..3 {
+                self.v[c][axis][lane] = p[axis];
+            }
+        }
+        self.ids[lane] = id;
+    }
+
+    pub fn corners(&self, lane: usize) -> [Vec3; 3] {
+        let c = |k: usize| Vec3::new(self.v[k][0][lane], self.v[k][1][lane], self.v[k][2][lane]);
+        [c(0), c(1), c(2)]
+    }
+
+    /// Bits of the lanes that hold a triangle.
+    pub fn valid_bits(&self) -> u32 {
+        (0..4)
+            .filter(|&i| self.ids[i] != u32::MAX)
+            .fold(0, |m, i| m | 1 << i)
+    }
+}
+
+/// One ray against the four triangles of a group: the lane of the closest hit in
+/// `(q.tmin, tmax)` and the hit. Ties go to the lowest lane, as in a sequential loop.
+#[inline]
+pub fn triangle4_closest(q: &RayQuery, g: &TriGroup4, tmax: f32) -> Option<(usize, PrimHit)> {
+    let (t, u, v, bits) = triangle4(q, g, tmax);
+    if bits == 0 {
+        return None;
+    }
+    let mut best = bits.trailing_zeros() as usize;
+    let mut rest = bits & (bits - 1);
+    while rest != 0 {
+        let i = rest.trailing_zeros() as usize;
+        if t[i] < t[best] {
+            best = i;
+        }
+        rest &= rest - 1;
+    }
+    Some((
+        best,
+        PrimHit {
+            t: t[best],
+            u: u[best],
+            v: v[best],
+        },
+    ))
+}
+
+/// One ray against a group: does any triangle lie in `(q.tmin, tmax)`?
+#[inline]
+pub fn triangle4_any(q: &RayQuery, g: &TriGroup4, tmax: f32) -> bool {
+    triangle4(q, g, tmax).3 != 0
+}
+
+/// The lane-parallel watertight test: distances, barycentrics and the hit bits.
+#[inline(always)]
+fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f32; 4], u32) {
+    let (kx, ky, kz) = (q.kx, q.ky, q.kz);
+    let o = [
+        F4::splat(q.origin.x),
+        F4::splat(q.origin.y),
+        F4::splat(q.origin.z),
+    ];
+    let corner = |c: usize, k: usize| F4::from_array(g.v[c][k]) - o[k];
+    let (sx, sy, sz) = (F4::splat(q.sx), F4::splat(q.sy), F4::splat(q.sz));
+
+    let (a_x, a_y, a_z) = (corner(0, kx), corner(0, ky), corner(0, kz));
+    let (b_x, b_y, b_z) = (corner(1, kx), corner(1, ky), corner(1, kz));
+    let (c_x, c_y, c_z) = (corner(2, kx), corner(2, ky), corner(2, kz));
+    let ax = a_x - sx * a_z;
+    let ay = a_y - sy * a_z;
+    let bx = b_x - sx * b_z;
+    let by = b_y - sy * b_z;
+    let cx = c_x - sx * c_z;
+    let cy = c_y - sy * c_z;
+
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+
+    let zero = F4::splat(0.0);
+    let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
+    let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
+    let det = u + v + w;
+    let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
+    let rcp = F4::splat(1.0) / det;
+    let t = t_scaled * rcp;
+    let ok = !(neg & pos).bitmask()
+        & !det.eq(zero).bitmask()
+        & det.is_finite().bitmask()
+        & t.gt(F4::splat(q.tmin)).bitmask()
+        & t.lt(F4::splat(tmax)).bitmask();
+
+    let valid = g.valid_bits();
+    let mut bits = ok & valid;
+    let mut t = t.to_array();
+    let mut bu = (v * rcp).to_array();
+    let mut bv = (w * rcp).to_array();
+
+    // An edge function exactly zero: the scalar test redoes it in f64 (Woop et al. §4).
+    let edge = (u.eq(zero) | v.eq(zero) | w.eq(zero)).bitmask() & valid;
+    if edge != 0 {
+        for i in 0..4 {
+            if edge >> i & 1 == 1 {
+                let [p0, p1, p2] = g.corners(i);
+                match intersect_triangle(q, p0, p1, p2, tmax) {
+                    Some(h) => {
+                        bits |= 1 << i;
+                        (t[i], bu[i], bv[i]) = (h.t, h.u, h.v);
+                    }
+                    None => bits &= !(1 << i),
+                }
+            }
+        }
+    }
+    (t, bu, bv, bits)
+}
+
+/// The rays of a packet prepared for triangle tests that share one axis permutation
+/// (the caller splits packets so that they do): per-lane origins and shear constants.
+#[derive(Clone, Copy)]
+pub struct PacketShear<L: Lanes> {
+    pub o: [L; 3],
+    pub kx: usize,
+    pub ky: usize,
+    pub kz: usize,
+    pub sx: L,
+    pub sy: L,
+    pub sz: L,
+    pub tmin: L,
+}
+
+/// A packet against one triangle: `(t, u, v, hit bits)` for lanes in `active` with a
+/// hit in `(tmin, tmax)`. Lanes with an exactly-zero edge function are returned in
+/// `edge` for the caller to redo with the scalar test.
+#[inline(always)]
+pub fn triangle_packet<L: Lanes>(
+    p: &PacketShear<L>,
+    corners: &[Vec3; 3],
+    tmax: L,
+    active: u32,
+) -> (L, L, L, u32, u32) {
+    let (kx, ky, kz) = (p.kx, p.ky, p.kz);
+    let rel = |c: usize, k: usize| L::splat(corners[c][k]) - p.o[k];
+    let (a_x, a_y, a_z) = (rel(0, kx), rel(0, ky), rel(0, kz));
+    let (b_x, b_y, b_z) = (rel(1, kx), rel(1, ky), rel(1, kz));
+    let (c_x, c_y, c_z) = (rel(2, kx), rel(2, ky), rel(2, kz));
+    let ax = a_x - p.sx * a_z;
+    let ay = a_y - p.sy * a_z;
+    let bx = b_x - p.sx * b_z;
+    let by = b_y - p.sy * b_z;
+    let cx = c_x - p.sx * c_z;
+    let cy = c_y - p.sy * c_z;
+
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+
+    let zero = L::splat(0.0);
+    let edge = (u.eq(zero) | v.eq(zero) | w.eq(zero)).bitmask() & active;
+    let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
+    let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
+    let inside = !(neg & pos).bitmask() & active & !edge;
+    if inside == 0 {
+        return (zero, zero, zero, 0, edge);
+    }
+    let det = u + v + w;
+    let t_scaled = u * (p.sz * a_z) + v * (p.sz * b_z) + w * (p.sz * c_z);
+    let rcp = L::splat(1.0) / det;
+    let t = t_scaled * rcp;
+    let bits = inside
+        & !det.eq(zero).bitmask()
+        & det.is_finite().bitmask()
+        & t.gt(p.tmin).bitmask()
+        & t.lt(tmax).bitmask();
+    (t, v * rcp, w * rcp, bits, edge)
+}

@@ -1,0 +1,214 @@
+//! Scalar-vs-SIMD equivalence: the scalar BVH2 traversal (the oracle), the BVH4
+//! single-ray SIMD kernel and the BVH4 packet kernel get the same rays and must return
+//! the same primitive, t within 1e-5 relative, and the same occlusion answer.
+
+mod common;
+
+use common::*;
+use glam::Vec3;
+use packet_render::accel::{Accel, Bvh2, Bvh4, Primitives, Triangles};
+use packet_render::geometry::{Aabb, Hit, Ray};
+use packet_render::scene::Camera;
+
+fn bounds_of(p: &Triangles) -> Aabb {
+    (0..p.count()).fold(Aabb::EMPTY, |b, i| b.union(&p.bounds(i)))
+}
+
+fn same_hit(a: Option<Hit>, b: Option<Hit>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            let close = (a.t - b.t).abs() <= 1e-5 * a.t.abs().max(1e-30);
+            // same primitive, or an exact tie between two (shared edge, duplicates)
+            close && (a.prim == b.prim || a.t == b.t)
+        }
+        _ => false,
+    }
+}
+
+/// Runs all three paths on `rays` (closest hit and occlusion) and compares.
+fn check(name: &str, tris: &Triangles, rays: &[Ray]) {
+    let scalar = Bvh2::build(tris.clone());
+    let bvh4 = Bvh4::build(tris.clone());
+    let mut packet = vec![None; rays.len()];
+    bvh4.closest_hit_batch(rays, &mut packet);
+    let mut packet_occ = vec![false; rays.len()];
+    bvh4.any_hit_batch(rays, &mut packet_occ);
+    let mut bad = Vec::new();
+    for (i, r) in rays.iter().enumerate() {
+        let want = scalar.closest_hit(r);
+        let single = bvh4.closest_single(r);
+        if !same_hit(want, single) {
+            bad.push(format!(
+                "ray {i}: scalar {want:?} vs bvh4-single {single:?}"
+            ));
+        }
+        if !same_hit(want, packet[i]) {
+            bad.push(format!(
+                "ray {i}: scalar {want:?} vs bvh4-packet {:?}",
+                packet[i]
+            ));
+        }
+        let occ = scalar.any_hit(r);
+        if occ != bvh4.any_single(r) || occ != packet_occ[i] {
+            bad.push(format!(
+                "ray {i}: occlusion scalar {occ}, single {}, packet {}",
+                bvh4.any_single(r),
+                packet_occ[i]
+            ));
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "{name}: {} mismatches of {}; first: {}",
+        bad.len(),
+        rays.len(),
+        bad[0]
+    );
+}
+
+/// Camera rays over the mesh in 4x4 pixel blocks (the packet order of the bench).
+fn camera_rays(b: &Aabb, w: u32, h: u32) -> Vec<Ray> {
+    let frame = Camera::framing(b).frame(w, h);
+    let mut rays = Vec::new();
+    for by in (0..h).step_by(4) {
+        for bx in (0..w).step_by(4) {
+            for y in by..by + 4 {
+                for x in bx..bx + 4 {
+                    rays.push(frame.ray(x as f32 + 0.5, y as f32 + 0.5));
+                }
+            }
+        }
+    }
+    rays
+}
+
+fn mesh() -> Triangles {
+    let (pos, tris) = bumpy_sphere(48, 96, 1.0);
+    triangles_of(&pos, &tris)
+}
+
+#[test]
+fn camera_rays_agree() {
+    let tris = mesh();
+    let rays = camera_rays(&bounds_of(&tris), 96, 96);
+    check("camera", &tris, &rays);
+}
+
+/// Shadow and cosine-diffuse rays from the camera hits, from origins offset along the
+/// normal and from origins exactly on the surface.
+#[test]
+fn secondary_rays_agree_and_shadow_rays_stop_short() {
+    let tris = mesh();
+    let b = bounds_of(&tris);
+    let cam = camera_rays(&b, 64, 64);
+    let oracle = Bvh2::build(tris.clone());
+    let light = b.center() + b.diagonal() * Vec3::new(0.8, 1.2, 0.6);
+    let mut shadow = Vec::new();
+    let mut diffuse = Vec::new();
+    let mut on_surface = Vec::new();
+    let mut rng = Rng(5);
+    for r in &cam {
+        let Some(h) = oracle.closest_hit(r) else {
+            continue;
+        };
+        let i = h.prim as usize;
+        let mut n = (tris.v1[i] - tris.v0[i])
+            .cross(tris.v2[i] - tris.v0[i])
+            .normalize();
+        if n.dot(r.dir) > 0.0 {
+            n = -n;
+        }
+        let p = r.at(h.t);
+        let o = packet_render::geometry::offset_ray_origin(p, n);
+        let to = light - o;
+        shadow.push(Ray::segment(o, to.normalize(), 0.0, to.length()));
+        let (t1, t2) = packet_render::geometry::orthonormal_basis(n);
+        let (u1, u2) = (rng.f32(), rng.f32());
+        let (rr, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+        diffuse.push(Ray::new(
+            o,
+            (t1 * rr * phi.cos() + t2 * rr * phi.sin() + n * (1.0 - u1).sqrt()).normalize(),
+        ));
+        on_surface.push(Ray::new(p, rng.unit_vector()));
+    }
+    check("shadow", &tris, &shadow);
+    check("diffuse", &tris, &diffuse);
+    check("on-surface", &tris, &on_surface);
+
+    // A ray stopped at 0.99 of its hit distance is unoccluded on every path.
+    let bvh4 = Bvh4::build(tris.clone());
+    let short: Vec<Ray> = cam
+        .iter()
+        .filter_map(|r| {
+            oracle.closest_hit(r).map(|h| Ray {
+                tmax: 0.99 * h.t,
+                ..*r
+            })
+        })
+        .collect();
+    let mut occ = vec![true; short.len()];
+    bvh4.any_hit_batch(&short, &mut occ);
+    for (r, o) in short.iter().zip(&occ) {
+        assert!(
+            !o && !bvh4.any_single(r) && !oracle.any_hit(r),
+            "ray ending at 0.99 t reported occluded"
+        );
+    }
+}
+
+#[test]
+fn random_and_axis_parallel_rays_agree() {
+    let tris = triangle_soup(4000, 11);
+    let rays = random_rays(&bounds_of(&tris), 30_000, 12);
+    check("random + axis-parallel", &tris, &rays);
+}
+
+/// Invalid lanes (NaN, inf, zero direction, NaN interval) miss and leave the other lanes
+/// of their packet untouched.
+#[test]
+fn invalid_lanes_never_hit_or_poison_neighbours() {
+    let tris = mesh();
+    let b = bounds_of(&tris);
+    let rays = camera_rays(&b, 32, 32);
+    let bvh4 = Bvh4::build(tris.clone());
+    let mut clean = vec![None; rays.len()];
+    bvh4.closest_hit_batch(&rays, &mut clean);
+    let mut poisoned = rays.clone();
+    let bad = [
+        Ray::new(Vec3::NAN, Vec3::Z),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0)),
+        Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0)),
+        Ray::new(b.center() + Vec3::Z * 5.0, Vec3::ZERO),
+        Ray {
+            tmin: f32::NAN,
+            ..rays[0]
+        },
+        Ray {
+            tmax: f32::NAN,
+            ..rays[0]
+        },
+        Ray {
+            tmin: 2.0,
+            tmax: 1.0,
+            ..rays[0]
+        },
+    ];
+    for (k, i) in (0..poisoned.len()).step_by(5).enumerate() {
+        poisoned[i] = bad[k % bad.len()];
+    }
+    let mut got = vec![None; rays.len()];
+    bvh4.closest_hit_batch(&poisoned, &mut got);
+    let mut occ = vec![true; rays.len()];
+    bvh4.any_hit_batch(&poisoned, &mut occ);
+    for i in 0..rays.len() {
+        if i % 5 == 0 {
+            assert!(
+                got[i].is_none() && !occ[i],
+                "invalid ray {i} reported a hit"
+            );
+        } else {
+            assert_eq!(got[i], clean[i], "lane {i} changed by an invalid neighbour");
+        }
+    }
+}
