@@ -1,6 +1,6 @@
 use super::{Accel, AccelInfo, Primitives};
 use crate::geometry::{Aabb, Hit, Ray, RayQuery};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -72,46 +72,147 @@ pub struct Bvh2<P: Primitives> {
     info: AccelInfo,
 }
 
-/// Intermediate tree of the parallel build, flattened afterwards.
-enum BuildNode {
+/// A box in SIMD-friendly form for the builder (`Vec3A`: one register per corner).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BBox {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl BBox {
+    const EMPTY: BBox = BBox {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    #[inline(always)]
+    fn grow(&mut self, o: &BBox) {
+        self.min = self.min.min(o.min);
+        self.max = self.max.max(o.max);
+    }
+
+    #[inline(always)]
+    fn grow_point(&mut self, p: Vec3A) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    #[inline(always)]
+    fn union(mut self, o: &BBox) -> BBox {
+        self.grow(o);
+        self
+    }
+
+    #[inline(always)]
+    fn area(&self) -> f32 {
+        let e = (self.max - self.min).max(Vec3A::ZERO);
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    fn extent(&self) -> Vec3A {
+        (self.max - self.min).max(Vec3A::ZERO)
+    }
+
+    fn to_aabb(self) -> Aabb {
+        Aabb::new(self.min.into(), self.max.into())
+    }
+}
+
+/// Intermediate tree of the parallel build: flattened into a BVH2, or collapsed
+/// straight into a BVH4.
+pub(super) enum BuildNode {
     Leaf {
-        bounds: Aabb,
+        bounds: BBox,
         start: usize,
         count: usize,
     },
     Interior {
-        bounds: Aabb,
+        bounds: BBox,
         children: Box<[BuildNode; 2]>,
     },
 }
 
 impl BuildNode {
-    fn bounds(&self) -> Aabb {
+    pub(super) fn bounds(&self) -> Aabb {
         match self {
-            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => *bounds,
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.to_aabb(),
         }
     }
 }
 
 struct Builder<'a> {
-    bounds: &'a [Aabb],
-    centroids: &'a [Vec3],
+    bounds: &'a [BBox],
+    centroids: &'a [Vec3A],
     opts: Bvh2BuildOptions,
 }
 
-#[derive(Clone, Copy)]
-struct Bin {
-    bounds: Aabb,
-    count: usize,
+/// Most bins per axis the builder supports.
+const MAX_BINS: usize = 32;
+
+/// Per-axis bins of one node: bounds and primitive counts.
+#[derive(Clone)]
+struct Bins {
+    bounds: [[BBox; MAX_BINS]; 3],
+    counts: [[u32; MAX_BINS]; 3],
 }
 
-impl Default for Bin {
-    fn default() -> Self {
-        Bin {
-            bounds: Aabb::EMPTY,
-            count: 0,
+impl Bins {
+    fn new() -> Self {
+        Bins {
+            bounds: [[BBox::EMPTY; MAX_BINS]; 3],
+            counts: [[0; MAX_BINS]; 3],
         }
     }
+
+    fn merge(mut self, o: &Bins) -> Bins {
+        for a in 0..3 {
+            for k in 0..MAX_BINS {
+                self.bounds[a][k].grow(&o.bounds[a][k]);
+                self.counts[a][k] += o.counts[a][k];
+            }
+        }
+        self
+    }
+}
+
+impl Bins {
+    /// Empties the first `n` bins of each axis (the only ones a node uses).
+    fn clear(&mut self, n: usize) {
+        for a in 0..3 {
+            self.bounds[a][..n].fill(BBox::EMPTY);
+            self.counts[a][..n].fill(0);
+        }
+    }
+
+    fn add(&mut self, k: [usize; 3], b: &BBox) {
+        for axis in 0..3 {
+            self.counts[axis][k[axis]] += 1;
+            self.bounds[axis][k[axis]].grow(b);
+        }
+    }
+}
+
+thread_local! {
+    /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
+    /// than building 3.5 KB of bins per node, most of which are tiny.
+    static SCRATCH_BINS: std::cell::RefCell<Bins> = std::cell::RefCell::new(Bins::new());
+}
+
+/// Where to split a node: axis, first bin of the right side, bin count, SAH cost.
+#[derive(Clone, Copy)]
+struct Split {
+    axis: usize,
+    bin: usize,
+    bins: usize,
+    cost: f32,
+}
+
+/// A node's bounds and its centroids' bounds, passed from parent to child so that
+/// no pass over the primitives is spent recomputing them.
+#[derive(Clone, Copy)]
+struct NodeBounds {
+    bounds: BBox,
+    centroids: BBox,
 }
 
 impl<P: Primitives> Bvh2<P> {
@@ -122,25 +223,16 @@ impl<P: Primitives> Bvh2<P> {
     pub fn build_with(prims: P, opts: Bvh2BuildOptions) -> Self {
         let start = Instant::now();
         let n = prims.count();
-        let bounds: Vec<Aabb> = (0..n).into_par_iter().map(|i| prims.bounds(i)).collect();
-        let centroids: Vec<Vec3> = (0..n).into_par_iter().map(|i| prims.centroid(i)).collect();
-        let mut ids: Vec<u32> = (0..n as u32).collect();
-        let builder = Builder {
-            bounds: &bounds,
-            centroids: &centroids,
-            opts,
-        };
+        let (root, ids) = build_tree(&prims, opts);
         let mut nodes = Vec::with_capacity(2 * n.max(1));
-        if n == 0 {
-            nodes.push(Bvh2Node {
+        match root {
+            None => nodes.push(Bvh2Node {
                 min: [f32::INFINITY; 3],
                 first: 0,
                 max: [f32::NEG_INFINITY; 3],
                 count: 0,
-            });
-        } else {
-            let root = builder.build(&mut ids, 0, 0);
-            flatten(&root, &mut nodes);
+            }),
+            Some(root) => flatten(&root, &mut nodes),
         }
         let prims = prims.permute(&ids);
 
@@ -169,13 +261,53 @@ impl<P: Primitives> Bvh2<P> {
     }
 }
 
+/// The binned-SAH build itself: the tree (`None` for no primitives) and the primitive
+/// order its leaf ranges index.
+pub(super) fn build_tree<P: Primitives>(
+    prims: &P,
+    opts: Bvh2BuildOptions,
+) -> (Option<BuildNode>, Vec<u32>) {
+    {
+        assert!(
+            opts.bins >= 2 && opts.bins <= MAX_BINS,
+            "bins must be in 2..={MAX_BINS}"
+        );
+        let n = prims.count();
+        let bounds: Vec<BBox> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let b = prims.bounds(i);
+                BBox {
+                    min: b.min.into(),
+                    max: b.max.into(),
+                }
+            })
+            .collect();
+        let centroids: Vec<Vec3A> = (0..n)
+            .into_par_iter()
+            .map(|i| prims.centroid(i).into())
+            .collect();
+        let mut ids: Vec<u32> = (0..n as u32).collect();
+        let builder = Builder {
+            bounds: &bounds,
+            centroids: &centroids,
+            opts,
+        };
+        if n == 0 {
+            return (None, ids);
+        }
+        let nb = builder.node_bounds(&ids);
+        let root = builder.build(&mut ids, 0, 0, nb);
+        (Some(root), ids)
+    }
+}
+
 impl Builder<'_> {
     /// Builds the subtree over `ids`, which start at global offset `offset`.
-    fn build(&self, ids: &mut [u32], offset: usize, depth: usize) -> BuildNode {
+    fn build(&self, ids: &mut [u32], offset: usize, depth: usize, nb: NodeBounds) -> BuildNode {
         let n = ids.len();
-        let (bounds, cbounds) = self.node_bounds(ids);
         let leaf = || BuildNode::Leaf {
-            bounds,
+            bounds: nb.bounds,
             start: offset,
             count: n,
         };
@@ -183,132 +315,156 @@ impl Builder<'_> {
             return leaf();
         }
 
-        let mut mid = None;
-        if depth < MEDIAN_DEPTH && cbounds.extent().max_element() > 0.0 {
-            if let Some((axis, split_bin, split_cost)) = self.best_split(ids, &cbounds, &bounds) {
+        let mut split = None;
+        if depth < MEDIAN_DEPTH && nb.centroids.extent().max_element() > 0.0 {
+            if let Some(s) = self.best_split(ids, &nb) {
                 let leaf_cost = self.opts.intersection_cost * n as f32;
-                if n <= self.opts.max_leaf && leaf_cost <= split_cost {
+                if n <= self.opts.max_leaf && leaf_cost <= s.cost {
                     return leaf();
                 }
-                let m = self.partition(ids, &cbounds, axis, split_bin);
+                let (m, left, right) = self.partition(ids, &nb.centroids, s);
                 if m > 0 && m < n {
-                    mid = Some(m);
+                    split = Some((m, left, right));
                 }
             }
         }
-        let mid = match mid {
-            Some(m) => m,
+        let (mid, left, right) = match split {
+            Some(s) => s,
             None => {
                 if n <= self.opts.max_leaf {
                     return leaf();
                 }
                 // No useful SAH split (identical centroids, or too deep): object median
                 // along the widest centroid axis, which always makes progress.
-                let axis = cbounds.largest_axis();
+                let e = nb.centroids.extent();
+                let axis = if e.x >= e.y && e.x >= e.z {
+                    0
+                } else if e.y >= e.z {
+                    1
+                } else {
+                    2
+                };
                 let m = n / 2;
                 ids.select_nth_unstable_by(m, |&a, &b| {
                     self.centroids[a as usize][axis].total_cmp(&self.centroids[b as usize][axis])
                 });
-                m
+                (m, self.node_bounds(&ids[..m]), self.node_bounds(&ids[m..]))
             }
         };
 
         let (left_ids, right_ids) = ids.split_at_mut(mid);
-        let (left, right) = if n >= PARALLEL_THRESHOLD {
+        let (l, r) = if n >= PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(left_ids, offset, depth + 1),
-                || self.build(right_ids, offset + mid, depth + 1),
+                || self.build(left_ids, offset, depth + 1, left),
+                || self.build(right_ids, offset + mid, depth + 1, right),
             )
         } else {
             (
-                self.build(left_ids, offset, depth + 1),
-                self.build(right_ids, offset + mid, depth + 1),
+                self.build(left_ids, offset, depth + 1, left),
+                self.build(right_ids, offset + mid, depth + 1, right),
             )
         };
         BuildNode::Interior {
-            bounds,
-            children: Box::new([left, right]),
+            bounds: nb.bounds,
+            children: Box::new([l, r]),
         }
     }
 
-    fn node_bounds(&self, ids: &[u32]) -> (Aabb, Aabb) {
-        let fold = |(mut b, mut c): (Aabb, Aabb), &i: &u32| {
-            b = b.union(&self.bounds[i as usize]);
-            c.grow(self.centroids[i as usize]);
-            (b, c)
+    fn node_bounds(&self, ids: &[u32]) -> NodeBounds {
+        let fold = |mut acc: NodeBounds, &i: &u32| {
+            acc.bounds.grow(&self.bounds[i as usize]);
+            acc.centroids.grow_point(self.centroids[i as usize]);
+            acc
         };
-        let empty = (Aabb::EMPTY, Aabb::EMPTY);
+        let empty = NodeBounds {
+            bounds: BBox::EMPTY,
+            centroids: BBox::EMPTY,
+        };
         if ids.len() >= PARALLEL_THRESHOLD * 4 {
             ids.par_chunks(PARALLEL_THRESHOLD)
                 .map(|c| c.iter().fold(empty, fold))
-                .reduce(|| empty, |a, b| (a.0.union(&b.0), a.1.union(&b.1)))
+                .reduce(
+                    || empty,
+                    |a, b| NodeBounds {
+                        bounds: a.bounds.union(&b.bounds),
+                        centroids: a.centroids.union(&b.centroids),
+                    },
+                )
         } else {
             ids.iter().fold(empty, fold)
         }
     }
 
-    #[inline]
-    fn bin_of(&self, c: f32, lo: f32, scale: f32) -> usize {
-        (((c - lo) * scale) as usize).min(self.opts.bins - 1)
+    /// Bin indices of a centroid on all three axes at once.
+    #[inline(always)]
+    fn bins_of(c: Vec3A, lo: Vec3A, scale: Vec3A, bins: usize) -> [usize; 3] {
+        let k = ((c - lo) * scale).min(Vec3A::splat((bins - 1) as f32));
+        [k.x as usize, k.y as usize, k.z as usize]
+    }
+
+    fn scale(cb: &BBox, bins: usize) -> Vec3A {
+        let e = cb.extent();
+        Vec3A::select(
+            e.cmpgt(Vec3A::ZERO),
+            Vec3A::splat(bins as f32) / e,
+            Vec3A::ZERO,
+        )
     }
 
     /// Bins centroids on all three axes and sweeps for the cheapest plane.
-    /// Returns (axis, first bin of the right side, SAH cost).
-    fn best_split(&self, ids: &[u32], cb: &Aabb, bounds: &Aabb) -> Option<(usize, usize, f32)> {
-        let nb = self.opts.bins;
-        let ext = cb.extent();
-        let scale = Vec3::new(
-            if ext.x > 0.0 { nb as f32 / ext.x } else { 0.0 },
-            if ext.y > 0.0 { nb as f32 / ext.y } else { 0.0 },
-            if ext.z > 0.0 { nb as f32 / ext.z } else { 0.0 },
-        );
-        let fill = |mut bins: Vec<[Bin; 3]>, &i: &u32| {
-            let c = self.centroids[i as usize];
-            let b = &self.bounds[i as usize];
-            for axis in 0..3 {
-                let k = self.bin_of(c[axis], cb.min[axis], scale[axis]);
-                bins[k][axis].count += 1;
-                bins[k][axis].bounds = bins[k][axis].bounds.union(b);
-            }
-            bins
-        };
-        let merge = |mut a: Vec<[Bin; 3]>, b: Vec<[Bin; 3]>| {
-            for (x, y) in a.iter_mut().zip(b.iter()) {
-                for axis in 0..3 {
-                    x[axis].count += y[axis].count;
-                    x[axis].bounds = x[axis].bounds.union(&y[axis].bounds);
-                }
-            }
-            a
-        };
-        let empty = || vec![[Bin::default(); 3]; nb];
-        let bins = if ids.len() >= PARALLEL_THRESHOLD * 4 {
-            ids.par_chunks(PARALLEL_THRESHOLD)
-                .map(|c| c.iter().fold(empty(), fill))
-                .reduce(empty, merge)
+    fn best_split(&self, ids: &[u32], nb: &NodeBounds) -> Option<Split> {
+        // Small nodes need few bins: at most two per primitive.
+        let bins_n = self.opts.bins.min(2 * ids.len()).max(2);
+        let cb = &nb.centroids;
+        let scale = Self::scale(cb, bins_n);
+        if ids.len() >= PARALLEL_THRESHOLD * 4 {
+            let bins = ids
+                .par_chunks(PARALLEL_THRESHOLD)
+                .map(|chunk| {
+                    let mut bins = Bins::new();
+                    for &i in chunk {
+                        let k = Self::bins_of(self.centroids[i as usize], cb.min, scale, bins_n);
+                        bins.add(k, &self.bounds[i as usize]);
+                    }
+                    bins
+                })
+                .reduce(Bins::new, |a, b| a.merge(&b));
+            self.sweep(&bins, bins_n, nb)
         } else {
-            ids.iter().fold(empty(), fill)
-        };
+            SCRATCH_BINS.with_borrow_mut(|bins| {
+                bins.clear(bins_n);
+                for &i in ids {
+                    let k = Self::bins_of(self.centroids[i as usize], cb.min, scale, bins_n);
+                    bins.add(k, &self.bounds[i as usize]);
+                }
+                self.sweep(bins, bins_n, nb)
+            })
+        }
+    }
 
-        let inv_area = 1.0 / bounds.area().max(f32::MIN_POSITIVE);
-        let mut best: Option<(usize, usize, f32)> = None;
-        let mut right_area = vec![0.0f32; nb];
-        let mut right_count = vec![0usize; nb];
+    /// The SAH sweep over filled bins: the cheapest plane on any axis.
+    fn sweep(&self, bins: &Bins, bins_n: usize, nb: &NodeBounds) -> Option<Split> {
+        let scale = Self::scale(&nb.centroids, bins_n);
+
+        let inv_area = 1.0 / nb.bounds.area().max(f32::MIN_POSITIVE);
+        let mut best: Option<Split> = None;
+        let mut right_area = [0.0f32; MAX_BINS];
+        let mut right_count = [0u32; MAX_BINS];
         for axis in 0..3 {
             if scale[axis] == 0.0 {
                 continue;
             }
-            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-            for k in (1..nb).rev() {
-                acc = acc.union(&bins[k][axis].bounds);
-                cnt += bins[k][axis].count;
+            let (mut acc, mut cnt) = (BBox::EMPTY, 0);
+            for k in (1..bins_n).rev() {
+                acc.grow(&bins.bounds[axis][k]);
+                cnt += bins.counts[axis][k];
                 right_area[k] = acc.area();
                 right_count[k] = cnt;
             }
-            let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-            for k in 1..nb {
-                acc = acc.union(&bins[k - 1][axis].bounds);
-                cnt += bins[k - 1][axis].count;
+            let (mut acc, mut cnt) = (BBox::EMPTY, 0);
+            for k in 1..bins_n {
+                acc.grow(&bins.bounds[axis][k - 1]);
+                cnt += bins.counts[axis][k - 1];
                 if cnt == 0 || right_count[k] == 0 {
                     continue;
                 }
@@ -316,31 +472,44 @@ impl Builder<'_> {
                     + self.opts.intersection_cost
                         * (acc.area() * cnt as f32 + right_area[k] * right_count[k] as f32)
                         * inv_area;
-                if best.is_none_or(|b| cost < b.2) {
-                    best = Some((axis, k, cost));
+                if best.is_none_or(|b| cost < b.cost) {
+                    best = Some(Split {
+                        axis,
+                        bin: k,
+                        bins: bins_n,
+                        cost,
+                    });
                 }
             }
         }
         best
     }
 
-    /// Moves primitives whose centroid bin is below `split_bin` to the front; returns
-    /// the count moved.
-    fn partition(&self, ids: &mut [u32], cb: &Aabb, axis: usize, split_bin: usize) -> usize {
-        let ext = cb.extent()[axis];
-        let scale = self.opts.bins as f32 / ext;
-        let lo = cb.min[axis];
-        let left = |i: u32| self.bin_of(self.centroids[i as usize][axis], lo, scale) < split_bin;
+    /// Moves primitives whose centroid bin is below the split bin to the front, and
+    /// gathers both sides' bounds on the way. Returns the count moved and the bounds.
+    fn partition(&self, ids: &mut [u32], cb: &BBox, s: Split) -> (usize, NodeBounds, NodeBounds) {
+        let scale = Self::scale(cb, s.bins);
+        let mut left = NodeBounds {
+            bounds: BBox::EMPTY,
+            centroids: BBox::EMPTY,
+        };
+        let mut right = left;
         let (mut i, mut j) = (0, ids.len());
         while i < j {
-            if left(ids[i]) {
+            let id = ids[i] as usize;
+            let c = self.centroids[id];
+            if Self::bins_of(c, cb.min, scale, s.bins)[s.axis] < s.bin {
+                left.bounds.grow(&self.bounds[id]);
+                left.centroids.grow_point(c);
                 i += 1;
             } else {
+                right.bounds.grow(&self.bounds[id]);
+                right.centroids.grow_point(c);
                 j -= 1;
                 ids.swap(i, j);
             }
         }
-        i
+        (i, left, right)
     }
 }
 

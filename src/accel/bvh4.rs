@@ -13,7 +13,8 @@
 //! part shares its slab planes and its watertight shear; a part with few active rays
 //! left finishes a subtree ray by ray, as Embree's hybrid traversal does.
 
-use super::{Accel, AccelInfo, Bvh2, Bvh2BuildOptions, Primitives};
+use super::bvh2::{BuildNode, build_tree};
+use super::{Accel, AccelInfo, Bvh2BuildOptions, Primitives, Triangles};
 use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::kernels::{
     PacketShear, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
@@ -126,27 +127,27 @@ pub fn bvh4_build_options() -> Bvh2BuildOptions {
 impl<P: Primitives> Bvh4<P> {
     pub fn build(prims: P) -> Self {
         let start = Instant::now();
-        let bvh2 = Bvh2::build_with(prims, bvh4_build_options());
-        let mut b = Collapse {
-            bvh2: &bvh2,
-            nodes: Vec::with_capacity(bvh2.nodes.len() / 2 + 1),
+        let n = prims.count();
+        let (tree, ids) = build_tree(&prims, bvh4_build_options());
+        let triangles = prims.as_triangles();
+        let mut c = Collapse {
+            ids: &ids,
+            triangles,
+            nodes: Vec::with_capacity(n / 2 + 1),
             groups: Vec::new(),
         };
-        let triangles = bvh2.prims.as_triangles().is_some();
-        let root = if bvh2.prim_ids.is_empty() {
-            EMPTY_CHILD
-        } else {
-            b.collapse(0, triangles)
+        let root = match &tree {
+            None => EMPTY_CHILD,
+            Some(t) => c.collapse(t),
         };
-        let Collapse { nodes, groups, .. } = b;
-        let n = bvh2.prim_ids.len();
-        let bvh2_info = bvh2.info();
-        let leaves = if triangles {
+        let Collapse { nodes, groups, .. } = c;
+        let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
+        let leaves = if triangles.is_some() {
             Leaves::Triangles(groups)
         } else {
             Leaves::Scalar {
-                prims: bvh2.prims,
-                ids: bvh2.prim_ids,
+                prims: prims.permute(&ids),
+                ids,
             }
         };
         let leaf_bytes = match &leaves {
@@ -159,7 +160,7 @@ impl<P: Primitives> Bvh4<P> {
             root,
             info: AccelInfo::default(),
         };
-        let (leaf_count, depth) = bvh.shape();
+        let (leaf_count, depth, sah) = bvh.shape(root_area);
         bvh.info = AccelInfo {
             name: "bvh4",
             primitives: n,
@@ -168,26 +169,33 @@ impl<P: Primitives> Bvh4<P> {
             leaves: leaf_count,
             max_depth: depth,
             memory_bytes: bvh.nodes.len() * std::mem::size_of::<Bvh4Node>() + leaf_bytes,
-            sah_cost: bvh2_info.sah_cost,
+            sah_cost: sah,
         };
         bvh
     }
 
-    /// (leaf count, depth).
-    fn shape(&self) -> (usize, usize) {
-        let (mut leaves, mut depth) = (0, 0);
-        let mut stack = vec![(self.root, 0usize)];
-        while let Some((r, d)) = stack.pop() {
+    /// (leaf count, depth, SAH cost with one unit per node visit and per leaf group or
+    /// primitive, relative to the root's area).
+    fn shape(&self, root_area: f32) -> (usize, usize, f64) {
+        let (mut leaves, mut depth, mut cost) = (0, 0, 0.0);
+        let inv = 1.0 / root_area.max(f32::MIN_POSITIVE) as f64;
+        let mut stack = vec![(self.root, 0usize, root_area)];
+        while let Some((r, d, area)) = stack.pop() {
             depth = depth.max(d);
             if is_leaf(r) {
                 leaves += usize::from(r != EMPTY_CHILD);
+                cost += area as f64 * inv * leaf_range(r).len() as f64;
             } else {
-                for &c in &self.nodes[r as usize].children {
-                    stack.push((c, d + 1));
+                cost += area as f64 * inv;
+                let node = &self.nodes[r as usize];
+                for (slot, &c) in node.children.iter().enumerate() {
+                    if c != EMPTY_CHILD {
+                        stack.push((c, d + 1, node.child_bounds(slot).area()));
+                    }
                 }
             }
         }
-        (leaves, depth)
+        (leaves, depth, cost)
     }
 
     /// Bytes per primitive of nodes and leaves.
@@ -196,35 +204,37 @@ impl<P: Primitives> Bvh4<P> {
     }
 }
 
-struct Collapse<'a, P: Primitives> {
-    bvh2: &'a Bvh2<P>,
+struct Collapse<'a> {
+    ids: &'a [u32],
+    triangles: Option<&'a Triangles>,
     nodes: Vec<Bvh4Node>,
     groups: Vec<TriGroup4>,
 }
 
-impl<P: Primitives> Collapse<'_, P> {
-    /// The BVH4 reference for the subtree of BVH2 node `i`.
-    fn collapse(&mut self, i: usize, triangles: bool) -> u32 {
-        let n = self.bvh2.nodes[i];
-        if n.is_leaf() {
-            return self.leaf(n.first as usize, n.count as usize, triangles);
-        }
-        let mut kids = vec![n.first as usize, n.first as usize + 1];
+impl Collapse<'_> {
+    /// The BVH4 reference for a build subtree: its two children, then the child with
+    /// the largest area opened until there are four.
+    fn collapse(&mut self, node: &BuildNode) -> u32 {
+        let BuildNode::Interior { children, .. } = node else {
+            let BuildNode::Leaf { start, count, .. } = node else {
+                unreachable!()
+            };
+            return self.leaf(*start, *count);
+        };
+        let mut kids: Vec<&BuildNode> = vec![&children[0], &children[1]];
         while kids.len() < 4 {
             let open = kids
                 .iter()
                 .enumerate()
-                .filter(|(_, k)| !self.bvh2.nodes[**k].is_leaf())
-                .max_by(|a, b| {
-                    let area = |k: usize| self.bvh2.nodes[k].bounds().area();
-                    area(*a.1).total_cmp(&area(*b.1))
-                })
+                .filter(|(_, k)| matches!(k, BuildNode::Interior { .. }))
+                .max_by(|a, b| a.1.bounds().area().total_cmp(&b.1.bounds().area()))
                 .map(|(pos, _)| pos);
             let Some(pos) = open else { break };
-            let k = kids.swap_remove(pos);
-            let f = self.bvh2.nodes[k].first as usize;
-            kids.push(f);
-            kids.push(f + 1);
+            let BuildNode::Interior { children, .. } = kids.swap_remove(pos) else {
+                unreachable!()
+            };
+            kids.push(&children[0]);
+            kids.push(&children[1]);
         }
         let index = self.nodes.len();
         self.nodes.push(Bvh4Node {
@@ -238,9 +248,9 @@ impl<P: Primitives> Collapse<'_, P> {
             ],
             children: [EMPTY_CHILD; 4],
         });
-        for (slot, &k) in kids.iter().enumerate() {
-            let b = self.bvh2.nodes[k].bounds();
-            let r = self.collapse(k, triangles);
+        for (slot, k) in kids.iter().enumerate() {
+            let b = k.bounds();
+            let r = self.collapse(k);
             let node = &mut self.nodes[index];
             for a in 0..3 {
                 node.planes[a][slot] = b.min[a];
@@ -251,24 +261,20 @@ impl<P: Primitives> Collapse<'_, P> {
         index as u32
     }
 
-    fn leaf(&mut self, first: usize, count: usize, triangles: bool) -> u32 {
-        if !triangles {
+    fn leaf(&mut self, first: usize, count: usize) -> u32 {
+        let Some(tris) = self.triangles else {
             assert!(
                 count < 16 && first <= FIRST_MASK as usize,
                 "leaf exceeds the reference encoding"
             );
             return LEAF | (count as u32) << COUNT_SHIFT | first as u32;
-        }
-        let tris = self.bvh2.prims.as_triangles().expect("triangle leaves");
+        };
         let start = self.groups.len();
-        for chunk in (first..first + count).collect::<Vec<_>>().chunks(4) {
+        for chunk in self.ids[first..first + count].chunks(4) {
             let mut g = TriGroup4::EMPTY;
-            for (lane, &k) in chunk.iter().enumerate() {
-                g.set(
-                    lane,
-                    self.bvh2.prim_ids[k],
-                    [tris.v0[k], tris.v1[k], tris.v2[k]],
-                );
+            for (lane, &id) in chunk.iter().enumerate() {
+                let k = id as usize;
+                g.set(lane, id, [tris.v0[k], tris.v1[k], tris.v2[k]]);
             }
             self.groups.push(g);
         }
@@ -340,10 +346,10 @@ impl NodeRay {
 /// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
 #[inline(always)]
 fn order_children(node: &Bvh4Node, enter: F4, mask: u32, stack: &mut Stack<(u32, f32)>) -> u32 {
-    let t = enter.to_array();
     if mask & (mask - 1) == 0 {
         return node.children[mask.trailing_zeros() as usize];
     }
+    let t = enter.to_array();
     let mut hits = [(0u32, 0f32); 4];
     let mut n = 0;
     let mut m = mask;

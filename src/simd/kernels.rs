@@ -112,6 +112,12 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
     let zero = F4::splat(0.0);
     let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
     let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
+    let valid = g.valid_bits();
+    let edge = (u.eq(zero) | v.eq(zero) | w.eq(zero)).bitmask() & valid;
+    if !(neg & pos).bitmask() & valid & !edge == 0 && edge == 0 {
+        // every lane is outside its triangle: skip the division
+        return ([0.0; 4], [0.0; 4], [0.0; 4], 0);
+    }
     let det = u + v + w;
     let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
     let rcp = F4::splat(1.0) / det;
@@ -122,14 +128,12 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
         & t.gt(F4::splat(q.tmin)).bitmask()
         & t.lt(F4::splat(tmax)).bitmask();
 
-    let valid = g.valid_bits();
     let mut bits = ok & valid;
     let mut t = t.to_array();
     let mut bu = (v * rcp).to_array();
     let mut bv = (w * rcp).to_array();
 
     // An edge function exactly zero: the scalar test redoes it in f64 (Woop et al. §4).
-    let edge = (u.eq(zero) | v.eq(zero) | w.eq(zero)).bitmask() & valid;
     if edge != 0 {
         for i in 0..4 {
             if edge >> i & 1 == 1 {
