@@ -349,6 +349,14 @@ impl SceneBuilder {
                 return bad(format!("vertex {i} is not finite: {p}"));
             }
         }
+        // Vertices added one by one (quads, triangles) after a mesh with normals have
+        // none: give them zero normals, meaning "use the geometric normal".
+        if self.mesh.has_normals() && self.mesh.nxs.len() < self.mesh.xs.len() {
+            let len = self.mesh.xs.len();
+            self.mesh.nxs.resize(len, 0.0);
+            self.mesh.nys.resize(len, 0.0);
+            self.mesh.nzs.resize(len, 0.0);
+        }
         if self.mesh.has_normals() && self.mesh.nxs.len() != self.mesh.xs.len() {
             return bad("normal count differs from vertex count".into());
         }

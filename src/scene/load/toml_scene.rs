@@ -1,0 +1,717 @@
+//! TOML scene files; the format is documented with a complete example in
+//! `scenes/README.md`.
+//!
+//! Values that can be wrong in meaning, not just in type, are deserialized as
+//! `toml::Spanned`, so a semantic error (an unknown material, a negative radius, a
+//! `nan` — TOML accepts `nan` and `inf` — or an absurd image size) points at the
+//! offending value, like the syntax and type errors `toml` itself reports. Tagged
+//! things (`[[light]]`, `[[generator]]`) are flat structs with a `type` field checked
+//! here rather than serde enums: serde's internally tagged enums buffer their content
+//! and would lose the spans.
+
+use super::{add_obj_mesh, line_column, load_obj, obj::utf8_or_located_error, print_warnings};
+use crate::error::{Error, Result};
+use crate::integrator::{MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
+use crate::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh, whitted_room};
+use crate::scene::{Camera, Checker, Light, Material, Scene, SceneBuilder};
+use glam::{Mat3, Mat4, Vec3};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::Path;
+use toml::Spanned;
+
+/// Deepest sphereflake accepted (level 6 is 597,871 spheres).
+pub const MAX_SPHEREFLAKE_LEVEL: u32 = 6;
+/// Largest tessellated mesh accepted.
+pub const MAX_GENERATED_TRIANGLES: u64 = 50_000_000;
+
+type V3 = Spanned<[f32; 3]>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    render: Option<RenderDef>,
+    camera: Option<Spanned<CameraDef>>,
+    background: Option<V3>,
+    ambient: Option<V3>,
+    #[serde(default)]
+    materials: BTreeMap<String, MaterialDef>,
+    #[serde(default)]
+    light: Vec<Spanned<LightDef>>,
+    #[serde(default)]
+    sphere: Vec<SphereDef>,
+    #[serde(default)]
+    quad: Vec<QuadDef>,
+    #[serde(default)]
+    plane: Vec<PlaneDef>,
+    #[serde(default)]
+    mesh: Vec<MeshDef>,
+    #[serde(default)]
+    generator: Vec<Spanned<GeneratorDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderDef {
+    width: Option<Spanned<u32>>,
+    height: Option<Spanned<u32>>,
+    spp: Option<Spanned<u32>>,
+    max_depth: Option<Spanned<u32>>,
+    min_contribution: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraDef {
+    eye: Option<V3>,
+    target: Option<V3>,
+    up: Option<V3>,
+    fov: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialDef {
+    preset: Option<Spanned<String>>,
+    diffuse: Option<V3>,
+    specular: Option<V3>,
+    shininess: Option<Spanned<f32>>,
+    mirror: Option<V3>,
+    transmission: Option<V3>,
+    ior: Option<Spanned<f32>>,
+    emission: Option<V3>,
+    checker: Option<CheckerDef>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CheckerDef {
+    a: V3,
+    b: V3,
+    scale: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightDef {
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    position: Option<V3>,
+    intensity: Option<V3>,
+    direction: Option<V3>,
+    irradiance: Option<V3>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SphereDef {
+    center: V3,
+    radius: Spanned<f32>,
+    material: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct QuadDef {
+    corner: V3,
+    edge1: V3,
+    edge2: V3,
+    material: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlaneDef {
+    point: V3,
+    normal: V3,
+    size: Spanned<f32>,
+    material: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshDef {
+    file: Spanned<String>,
+    material: Option<Spanned<String>>,
+    translate: Option<V3>,
+    scale: Option<Spanned<toml::Value>>,
+    rotate_y: Option<Spanned<f32>>,
+    rotate: Option<V3>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GeneratorDef {
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    level: Option<Spanned<u32>>,
+    triangles: Option<Spanned<u64>>,
+    center: Option<V3>,
+    radius: Option<Spanned<f32>>,
+    material: Option<Spanned<String>>,
+}
+
+/// Reads and builds a TOML scene file.
+pub fn load_toml_scene(path: &Path) -> Result<Scene> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = utf8_or_located_error(path, &bytes)?;
+    parse_toml_scene(text, path)
+}
+
+/// Builds a scene from TOML `text`; `path` names it in errors and anchors relative
+/// mesh paths.
+pub fn parse_toml_scene(text: &str, path: &Path) -> Result<Scene> {
+    let cx = Ctx { path, text };
+    let file: SceneFile = toml::from_str(text).map_err(|e| {
+        let span = e.span().unwrap_or(0..0);
+        cx.error(&span, e.message().trim_end().to_string())
+    })?;
+    Builder::new(cx, &file.materials)?.build(file)
+}
+
+/// The file being read, to turn spans into locations.
+#[derive(Clone, Copy)]
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Ctx<'_> {
+    fn error(&self, span: &Range<usize>, message: impl Into<String>) -> Error {
+        let (line, column) = line_column(self.text, span.start);
+        Error::input(self.path, line, column, message)
+    }
+
+    fn at<T>(&self, v: &Spanned<T>, message: impl Into<String>) -> Error {
+        self.error(&v.span(), message)
+    }
+
+    fn vec3(&self, v: &V3, what: &str) -> Result<Vec3> {
+        let p = Vec3::from_array(*v.get_ref());
+        if !p.is_finite() {
+            return Err(self.at(v, format!("`{what}` must be three finite numbers, got {p}")));
+        }
+        Ok(p)
+    }
+
+    fn color(&self, v: &V3, what: &str) -> Result<Vec3> {
+        let c = self.vec3(v, what)?;
+        if c.min_element() < 0.0 {
+            return Err(self.at(v, format!("`{what}` must be non-negative, got {c}")));
+        }
+        Ok(c)
+    }
+
+    fn direction(&self, v: &V3, what: &str) -> Result<Vec3> {
+        let d = self.vec3(v, what)?;
+        if d.length_squared() < 1e-20 {
+            return Err(self.at(v, format!("`{what}` must be a non-zero vector")));
+        }
+        Ok(d)
+    }
+
+    fn positive(&self, v: &Spanned<f32>, what: &str) -> Result<f32> {
+        let x = *v.get_ref();
+        if !(x.is_finite() && x > 0.0) {
+            return Err(self.at(v, format!("`{what}` must be a finite number > 0, got {x}")));
+        }
+        Ok(x)
+    }
+
+    fn range_u32(&self, v: &Spanned<u32>, what: &str, lo: u32, hi: u32) -> Result<u32> {
+        let x = *v.get_ref();
+        if x < lo || x > hi {
+            return Err(self.at(
+                v,
+                format!("`{what}` must be between {lo} and {hi}, got {x}"),
+            ));
+        }
+        Ok(x)
+    }
+}
+
+struct Builder<'a> {
+    cx: Ctx<'a>,
+    b: SceneBuilder,
+    material_ids: BTreeMap<String, u32>,
+    default_material: Option<u32>,
+}
+
+impl<'a> Builder<'a> {
+    fn new(cx: Ctx<'a>, defs: &BTreeMap<String, MaterialDef>) -> Result<Self> {
+        let mut b = SceneBuilder::new();
+        let mut material_ids = BTreeMap::new();
+        for (name, def) in defs {
+            let m = material(cx, name, def)?;
+            material_ids.insert(name.clone(), b.add_material(m));
+        }
+        Ok(Builder {
+            cx,
+            b,
+            material_ids,
+            default_material: None,
+        })
+    }
+
+    /// The id of a named material; no name means the default grey diffuse material.
+    fn material(&mut self, name: &Option<Spanned<String>>) -> Result<u32> {
+        let Some(name) = name else {
+            let b = &mut self.b;
+            return Ok(*self
+                .default_material
+                .get_or_insert_with(|| b.add_material(Material::default())));
+        };
+        self.material_ids
+            .get(name.get_ref())
+            .copied()
+            .ok_or_else(|| {
+                let defined = if self.material_ids.is_empty() {
+                    "no materials are defined (add a [materials.NAME] table)".to_string()
+                } else {
+                    format!(
+                        "defined materials: {}",
+                        self.material_ids
+                            .keys()
+                            .map(String::as_str)
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                };
+                self.cx.at(
+                    name,
+                    format!("unknown material `{}`; {defined}", name.get_ref()),
+                )
+            })
+    }
+
+    fn build(mut self, file: SceneFile) -> Result<Scene> {
+        let cx = self.cx;
+        // Generators first: `whitted_room` sets a camera, lights and background that
+        // the file's own settings then override.
+        for g in &file.generator {
+            self.generator(g)?;
+        }
+        for s in &file.sphere {
+            let center = cx.vec3(&s.center, "center")?;
+            let radius = cx.positive(&s.radius, "radius")?;
+            let m = self.material(&s.material)?;
+            self.b.add_sphere(center, radius, m);
+        }
+        for q in &file.quad {
+            let corner = cx.vec3(&q.corner, "corner")?;
+            let e1 = cx.direction(&q.edge1, "edge1")?;
+            let e2 = cx.direction(&q.edge2, "edge2")?;
+            if e1.cross(e2).length_squared() <= 1e-12 * e1.length_squared() * e2.length_squared() {
+                return Err(cx.at(
+                    &q.edge2,
+                    "`edge2` is parallel to `edge1`: a quad needs two independent edges",
+                ));
+            }
+            let m = self.material(&q.material)?;
+            self.b.add_quad(corner, e1, e2, m);
+        }
+        for p in &file.plane {
+            let point = cx.vec3(&p.point, "point")?;
+            let n = cx.direction(&p.normal, "normal")?.normalize();
+            let size = cx.positive(&p.size, "size")?;
+            let m = self.material(&p.material)?;
+            // A square of half-extent `size` around `point`, wound so e1 × e2 = n.
+            let (t, bt) = tangent_frame(n);
+            self.b
+                .add_quad(point - size * (t + bt), 2.0 * size * t, 2.0 * size * bt, m);
+        }
+        for mesh in &file.mesh {
+            self.mesh(mesh)?;
+        }
+        for l in &file.light {
+            let light = light(cx, l)?;
+            self.b.add_light(light);
+        }
+        if let Some(r) = &file.render {
+            self.render_settings(r)?;
+        }
+        if let Some(bg) = &file.background {
+            self.b.background = cx.color(bg, "background")?;
+        }
+        if let Some(a) = &file.ambient {
+            self.b.ambient = cx.color(a, "ambient")?;
+        }
+        if let Some(c) = &file.camera {
+            self.b.camera = Some(self.camera(c)?);
+        }
+        self.b.finish()
+    }
+
+    fn render_settings(&mut self, r: &RenderDef) -> Result<()> {
+        let cx = self.cx;
+        let s = &mut self.b.settings;
+        if let Some(w) = &r.width {
+            s.width = cx.range_u32(w, "width", 1, MAX_IMAGE_SIDE)?;
+        }
+        if let Some(h) = &r.height {
+            s.height = cx.range_u32(h, "height", 1, MAX_IMAGE_SIDE)?;
+        }
+        if (s.width as u64) * (s.height as u64) > 1 << 30 {
+            let span = r
+                .width
+                .as_ref()
+                .or(r.height.as_ref())
+                .map_or(0..0, |v| v.span());
+            return Err(cx.error(
+                &span,
+                format!("{}x{} exceeds 2^30 pixels", s.width, s.height),
+            ));
+        }
+        if let Some(spp) = &r.spp {
+            s.spp = cx.range_u32(spp, "spp", 1, MAX_SPP)?;
+        }
+        if let Some(d) = &r.max_depth {
+            s.max_depth = cx.range_u32(d, "max_depth", 0, MAX_DEPTH)?;
+        }
+        if let Some(mc) = &r.min_contribution {
+            let x = *mc.get_ref();
+            if !(0.0..=1.0).contains(&x) {
+                return Err(cx.at(
+                    mc,
+                    format!("`min_contribution` must be between 0 and 1, got {x}"),
+                ));
+            }
+            s.min_contribution = x;
+        }
+        Ok(())
+    }
+
+    /// Missing `eye`/`target` come from the automatic framing of the scene's bounds.
+    fn camera(&self, c: &Spanned<CameraDef>) -> Result<Camera> {
+        let cx = self.cx;
+        let def = c.get_ref();
+        let framing = Camera::framing(&self.b.bounds());
+        let eye = def
+            .eye
+            .as_ref()
+            .map(|v| cx.vec3(v, "eye"))
+            .transpose()?
+            .unwrap_or(framing.eye);
+        let target = def
+            .target
+            .as_ref()
+            .map(|v| cx.vec3(v, "target"))
+            .transpose()?
+            .unwrap_or(framing.target);
+        let up = def
+            .up
+            .as_ref()
+            .map(|v| cx.direction(v, "up"))
+            .transpose()?
+            .unwrap_or(Vec3::Y);
+        let vfov_deg = match &def.fov {
+            Some(f) => {
+                let x = *f.get_ref();
+                if !(x > 0.0 && x < 180.0) {
+                    return Err(cx.at(
+                        f,
+                        format!("`fov` must be between 0 and 180 degrees (exclusive), got {x}"),
+                    ));
+                }
+                x
+            }
+            None => 45.0,
+        };
+        let camera = Camera {
+            eye,
+            target,
+            up,
+            vfov_deg,
+        };
+        let anchor = def
+            .eye
+            .as_ref()
+            .or(def.target.as_ref())
+            .map_or(c.span(), |v| v.span());
+        camera
+            .validate()
+            .map_err(|e| cx.error(&anchor, format!("invalid camera: {e}")))?;
+        Ok(camera)
+    }
+
+    fn mesh(&mut self, def: &MeshDef) -> Result<()> {
+        let cx = self.cx;
+        let dir = cx.path.parent().unwrap_or(Path::new(""));
+        let resolved = dir.join(def.file.get_ref());
+        if !resolved.is_file() {
+            return Err(cx.at(
+                &def.file,
+                format!(
+                    "mesh file `{}` not found (resolved to {})",
+                    def.file.get_ref(),
+                    resolved.display()
+                ),
+            ));
+        }
+        let transform = mesh_transform(cx, def)?;
+        let material = def
+            .material
+            .as_ref()
+            .map(|_| self.material(&def.material))
+            .transpose()?;
+        let mesh = load_obj(&resolved)?;
+        print_warnings(&mesh.warnings);
+        add_obj_mesh(&mut self.b, &mesh, transform, material);
+        Ok(())
+    }
+
+    fn generator(&mut self, g: &Spanned<GeneratorDef>) -> Result<()> {
+        let cx = self.cx;
+        let def = g.get_ref();
+        let kind = def.kind.get_ref().as_str();
+        let fields: &[&str] = match kind {
+            "sphereflake" => &["level", "center", "radius", "material"],
+            "tessellated" => &["triangles", "center", "radius", "material"],
+            "whitted_room" => &[],
+            other => {
+                return Err(cx.at(
+                    &def.kind,
+                    format!("unknown generator type `{other}`; expected one of: sphereflake, tessellated, whitted_room"),
+                ));
+            }
+        };
+        let present = [
+            ("level", def.level.as_ref().map(|v| v.span())),
+            ("triangles", def.triangles.as_ref().map(|v| v.span())),
+            ("center", def.center.as_ref().map(|v| v.span())),
+            ("radius", def.radius.as_ref().map(|v| v.span())),
+            ("material", def.material.as_ref().map(|v| v.span())),
+        ];
+        reject_foreign_fields(cx, &present, fields, &format!("a `{kind}` generator"))?;
+        let center = def
+            .center
+            .as_ref()
+            .map(|v| cx.vec3(v, "center"))
+            .transpose()?
+            .unwrap_or(Vec3::ZERO);
+        let radius = def
+            .radius
+            .as_ref()
+            .map(|v| cx.positive(v, "radius"))
+            .transpose()?
+            .unwrap_or(1.0);
+        match kind {
+            "sphereflake" => {
+                let level = match &def.level {
+                    Some(l) => cx.range_u32(l, "level", 0, MAX_SPHEREFLAKE_LEVEL)?,
+                    None => return Err(cx.at(g, "a sphereflake generator needs `level` (0..=6)")),
+                };
+                let m = self.material(&def.material)?;
+                let n = sphereflake(&mut self.b, level, center, radius, m);
+                debug_assert_eq!(n, sphereflake_count(level));
+            }
+            "tessellated" => {
+                let triangles = match &def.triangles {
+                    Some(t) if (1..=MAX_GENERATED_TRIANGLES).contains(t.get_ref()) => {
+                        *t.get_ref() as usize
+                    }
+                    Some(t) => {
+                        return Err(cx.at(
+                            t,
+                            format!("`triangles` must be between 1 and {MAX_GENERATED_TRIANGLES}, got {}", t.get_ref()),
+                        ));
+                    }
+                    None => return Err(cx.at(g, "a tessellated generator needs `triangles`")),
+                };
+                let m = self.material(&def.material)?;
+                tessellated_mesh(&mut self.b, triangles, center, radius, m);
+            }
+            _ => whitted_room(&mut self.b),
+        }
+        Ok(())
+    }
+}
+
+fn material(cx: Ctx, name: &str, def: &MaterialDef) -> Result<Material> {
+    let mut m = match &def.preset {
+        None => Material::diffuse(name, Vec3::splat(0.8)),
+        Some(p) => {
+            match p.get_ref().as_str() {
+                "diffuse" => Material::diffuse(name, Vec3::splat(0.8)),
+                "mirror" => Material::mirror(name, Vec3::splat(0.9)),
+                "glass" => Material::glass(name, 1.5),
+                other => {
+                    return Err(cx.at(p, format!("unknown material preset `{other}`; expected one of: diffuse, mirror, glass")));
+                }
+            }
+        }
+    };
+    let colours = [
+        (&def.diffuse, "diffuse", &mut m.diffuse),
+        (&def.specular, "specular", &mut m.specular),
+        (&def.mirror, "mirror", &mut m.mirror),
+        (&def.transmission, "transmission", &mut m.transmission),
+        (&def.emission, "emission", &mut m.emission),
+    ];
+    for (value, what, slot) in colours {
+        if let Some(v) = value {
+            *slot = cx.color(v, what)?;
+        }
+    }
+    if let Some(s) = &def.shininess {
+        let x = *s.get_ref();
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(cx.at(
+                s,
+                format!("`shininess` must be a finite number >= 0, got {x}"),
+            ));
+        }
+        m.shininess = x;
+    }
+    if let Some(ior) = &def.ior {
+        m.ior = cx.positive(ior, "ior")?;
+    }
+    if let Some(c) = &def.checker {
+        m.checker = Some(Checker {
+            color_a: cx.color(&c.a, "a")?,
+            color_b: cx.color(&c.b, "b")?,
+            scale: c
+                .scale
+                .as_ref()
+                .map(|s| cx.positive(s, "scale"))
+                .transpose()?
+                .unwrap_or(1.0),
+        });
+    }
+    Ok(m)
+}
+
+fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
+    let def = l.get_ref();
+    let kind = def.kind.get_ref().as_str();
+    let (fields, a, b): (&[&str], _, _) = match kind {
+        "point" => (&["position", "intensity"], &def.position, &def.intensity),
+        "directional" => (
+            &["direction", "irradiance"],
+            &def.direction,
+            &def.irradiance,
+        ),
+        other => {
+            return Err(cx.at(
+                &def.kind,
+                format!("unknown light type `{other}`; expected one of: point, directional"),
+            ));
+        }
+    };
+    let present = [
+        ("position", def.position.as_ref().map(|v| v.span())),
+        ("intensity", def.intensity.as_ref().map(|v| v.span())),
+        ("direction", def.direction.as_ref().map(|v| v.span())),
+        ("irradiance", def.irradiance.as_ref().map(|v| v.span())),
+    ];
+    let what = format!("a {kind} light");
+    reject_foreign_fields(cx, &present, fields, &what)?;
+    let (Some(a), Some(b)) = (a, b) else {
+        return Err(cx.at(
+            l,
+            format!("{what} needs `{}` and `{}`", fields[0], fields[1]),
+        ));
+    };
+    Ok(match kind {
+        "point" => Light::Point {
+            position: cx.vec3(a, "position")?,
+            intensity: cx.color(b, "intensity")?,
+        },
+        _ => Light::Directional {
+            direction: cx.direction(a, "direction")?.normalize(),
+            irradiance: cx.color(b, "irradiance")?,
+        },
+    })
+}
+
+/// A field that exists in the struct but not for this `type` is an error at that field.
+fn reject_foreign_fields(
+    cx: Ctx,
+    present: &[(&str, Option<Range<usize>>)],
+    allowed: &[&str],
+    what: &str,
+) -> Result<()> {
+    for (name, span) in present {
+        if let Some(span) = span
+            && !allowed.contains(name)
+        {
+            let expected = if allowed.is_empty() {
+                "it takes no fields besides `type`".to_string()
+            } else {
+                format!("expected one of: type, {}", allowed.join(", "))
+            };
+            return Err(cx.error(
+                span,
+                format!("`{name}` is not a field of {what}; {expected}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `translate * rotate * scale`; rotations in degrees, applied about x, then y, then z.
+fn mesh_transform(cx: Ctx, def: &MeshDef) -> Result<Mat4> {
+    let translate = def
+        .translate
+        .as_ref()
+        .map(|v| cx.vec3(v, "translate"))
+        .transpose()?
+        .unwrap_or(Vec3::ZERO);
+    let scale = match &def.scale {
+        None => Vec3::ONE,
+        Some(s) => {
+            let bad = || {
+                cx.at(
+                    s,
+                    "`scale` must be a non-zero finite number or an array [x, y, z] of them",
+                )
+            };
+            let num = |v: &toml::Value| match v {
+                toml::Value::Float(f) => Some(*f as f32),
+                toml::Value::Integer(i) => Some(*i as f32),
+                _ => None,
+            };
+            let v = match s.get_ref() {
+                toml::Value::Array(a) if a.len() == 3 => {
+                    let c: Option<Vec<f32>> = a.iter().map(num).collect();
+                    c.map(|c| Vec3::new(c[0], c[1], c[2])).ok_or_else(bad)?
+                }
+                other => Vec3::splat(num(other).ok_or_else(bad)?),
+            };
+            if !v.is_finite() || v.x == 0.0 || v.y == 0.0 || v.z == 0.0 {
+                return Err(bad());
+            }
+            v
+        }
+    };
+    let degrees = match (&def.rotate, &def.rotate_y) {
+        (Some(_), Some(ry)) => {
+            return Err(cx.at(ry, "give either `rotate` or `rotate_y`, not both"));
+        }
+        (Some(r), None) => cx.vec3(r, "rotate")?,
+        (None, Some(ry)) => {
+            let y = *ry.get_ref();
+            if !y.is_finite() {
+                return Err(cx.at(
+                    ry,
+                    format!("`rotate_y` must be a finite number of degrees, got {y}"),
+                ));
+            }
+            Vec3::new(0.0, y, 0.0)
+        }
+        (None, None) => Vec3::ZERO,
+    };
+    let r = Mat3::from_rotation_z(degrees.z.to_radians())
+        * Mat3::from_rotation_y(degrees.y.to_radians())
+        * Mat3::from_rotation_x(degrees.x.to_radians());
+    Ok(Mat4::from_translation(translate) * Mat4::from_mat3(r) * Mat4::from_scale(scale))
+}
+
+/// Unit `(t, b)` with `t × b = n` for unit `n`.
+fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
+    let helper = if n.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let b = n.cross(helper).normalize();
+    let t = b.cross(n);
+    (t, b)
+}
