@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::scene::Scene;
 use crate::stats::RayCounts;
+use std::sync::Arc;
 
 /// Largest image side accepted (a 64k x 64k RGB f32 film is already 48 GiB).
 pub const MAX_IMAGE_SIDE: u32 = 65_536;
@@ -44,8 +45,12 @@ pub fn validate_dimensions(width: u32, height: u32, spp: u32, max_depth: u32) ->
     Ok(())
 }
 
+/// Progress callback: `(tiles done, tiles total)`, called from worker threads as tiles
+/// finish (so in no particular order of tiles, but `done` only grows).
+pub type ProgressFn = Arc<dyn Fn(u64, u64) + Send + Sync>;
+
 /// Everything a render needs besides the scene and the structure.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone)]
 pub struct RenderOptions {
     pub width: u32,
     pub height: u32,
@@ -53,8 +58,44 @@ pub struct RenderOptions {
     pub max_depth: u32,
     pub min_contribution: f32,
     pub seed: u64,
-    /// Called with the fraction done (0..=1) as tiles finish; `None` for silence.
-    pub progress: bool,
+    /// Called as tiles finish; `None` for silence.
+    pub progress: Option<ProgressFn>,
+}
+
+// By hand because a closure is neither `Debug` nor `PartialEq`: the reporter is shown
+// by presence and compared by identity.
+impl std::fmt::Debug for RenderOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RenderOptions")
+            .field("width", &self.width)
+            .field("height", &self.height)
+            .field("spp", &self.spp)
+            .field("max_depth", &self.max_depth)
+            .field("min_contribution", &self.min_contribution)
+            .field("seed", &self.seed)
+            .field(
+                "progress",
+                &self.progress.as_ref().map(|_| "Fn(done, total)"),
+            )
+            .finish()
+    }
+}
+
+impl PartialEq for RenderOptions {
+    fn eq(&self, o: &Self) -> bool {
+        let same_progress = match (&self.progress, &o.progress) {
+            (None, None) => true,
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        };
+        self.width == o.width
+            && self.height == o.height
+            && self.spp == o.spp
+            && self.max_depth == o.max_depth
+            && self.min_contribution == o.min_contribution
+            && self.seed == o.seed
+            && same_progress
+    }
 }
 
 impl RenderOptions {
@@ -67,7 +108,7 @@ impl RenderOptions {
             max_depth: s.max_depth,
             min_contribution: s.min_contribution,
             seed: 0,
-            progress: false,
+            progress: None,
         }
     }
 
@@ -77,8 +118,12 @@ impl RenderOptions {
 }
 
 /// A finished render.
+#[derive(Clone, Debug)]
 pub struct RenderOutput {
     pub film: Film,
     pub rays: RayCounts,
     pub render_ms: f64,
+    /// Samples whose radiance came out NaN or infinite. Each was written as black, so a
+    /// numeric bug shows here instead of poisoning the image (and every later average).
+    pub nonfinite_samples: u64,
 }

@@ -1,0 +1,227 @@
+//! Image files: format by extension, written atomically.
+
+use super::Film;
+use crate::error::{Error, Result};
+use image::ImageEncoder;
+use image::codecs::hdr::HdrEncoder;
+use image::codecs::png::PngEncoder;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Extensions [`Film::save`] understands (lower case, compared case-insensitively).
+pub const SUPPORTED_EXTENSIONS: &[&str] = &["png", "hdr"];
+
+#[derive(Clone, Copy)]
+enum Format {
+    /// 8-bit sRGB, clamped: for looking at.
+    Png,
+    /// Radiance RGBE, linear float: for measuring.
+    Hdr,
+}
+
+impl Film {
+    /// Writes the film to `path`, choosing the format from the extension: `.png` (8-bit
+    /// sRGB) or `.hdr` (Radiance RGBE, linear).
+    ///
+    /// The write is atomic: the image is encoded into a temporary file in the target's
+    /// directory, flushed to disk, and renamed over the target. A reader never sees a
+    /// half-written image, an existing file is only replaced by a complete one, and on
+    /// any error the temporary file is removed, so a failed save leaves nothing behind.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let format = format_for(path)?;
+        let tmp = temp_path_for(path)?;
+        let result = self
+            .write_to(&tmp, path, format)
+            .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+        match result {
+            Ok(()) => {
+                sync_parent_dir(path);
+                Ok(())
+            }
+            Err(e) => {
+                // The temp file may not exist (creation failed); nothing to report then.
+                let _ = std::fs::remove_file(&tmp);
+                Err(e)
+            }
+        }
+    }
+
+    fn write_to(&self, tmp: &Path, target: &Path, format: Format) -> Result<()> {
+        let file = File::create(tmp).map_err(|e| Error::io(target, e))?;
+        let mut out = BufWriter::new(file);
+        let image_err = |e: image::ImageError| Error::Image {
+            path: target.to_path_buf(),
+            message: e.to_string(),
+        };
+        match format {
+            Format::Png => PngEncoder::new(&mut out)
+                .write_image(
+                    &self.to_srgb8(),
+                    self.width,
+                    self.height,
+                    image::ExtendedColorType::Rgb8,
+                )
+                .map_err(image_err)?,
+            Format::Hdr => {
+                // RGBE has no sign and no NaN: store what a display could show of such
+                // values (0) rather than a garbage exponent.
+                let finite = |c: f32| if c.is_finite() { c.max(0.0) } else { 0.0 };
+                let rgb: Vec<image::Rgb<f32>> = self
+                    .pixels
+                    .iter()
+                    .map(|p| image::Rgb([finite(p.x), finite(p.y), finite(p.z)]))
+                    .collect();
+                HdrEncoder::new(&mut out)
+                    .encode(&rgb, self.width as usize, self.height as usize)
+                    .map_err(image_err)?
+            }
+        }
+        let file = out
+            .into_inner()
+            .map_err(|e| Error::io(target, e.into_error()))?;
+        // Data on disk before the rename makes it visible, or a crash could leave a
+        // complete-looking name over an empty file.
+        file.sync_all().map_err(|e| Error::io(target, e))
+    }
+}
+
+fn format_for(path: &Path) -> Result<Format> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("png") => Ok(Format::Png),
+        Some("hdr") => Ok(Format::Hdr),
+        _ => Err(Error::parameter(
+            "image format",
+            format!(
+                "{}: unsupported extension, expected one of .{}",
+                path.display(),
+                SUPPORTED_EXTENSIONS.join(", .")
+            ),
+        )),
+    }
+}
+
+/// `dir/.name.tmp-<pid>-<n>`: in the target's directory so the rename stays on one
+/// file system (and is therefore atomic), hidden, and unique per process and per call
+/// so that concurrent saves never share a temporary file.
+fn temp_path_for(path: &Path) -> Result<PathBuf> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = path.file_name().ok_or_else(|| {
+        Error::parameter(
+            "output path",
+            format!("{} has no file name", path.display()),
+        )
+    })?;
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let tmp_name = format!(".{}.tmp-{}-{n}", name.to_string_lossy(), std::process::id());
+    Ok(path.with_file_name(tmp_name))
+}
+
+/// Makes the rename itself durable where the platform allows it; a failure here cannot
+/// undo a completed rename, so it is not an error.
+fn sync_parent_dir(path: &Path) {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn scratch_dir(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("packet-render-film-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    fn gradient() -> Film {
+        let mut f = Film::new(5, 3);
+        for y in 0..3 {
+            for x in 0..5 {
+                f.set(x, y, Vec3::new(x as f32 / 4.0, y as f32 / 2.0, 0.25));
+            }
+        }
+        f
+    }
+
+    #[test]
+    fn png_and_hdr_round_trip_and_leave_no_temp_files() {
+        let dir = scratch_dir("roundtrip");
+        let film = gradient();
+        let png = dir.join("out.png");
+        let hdr = dir.join("out.HDR");
+        film.save(&png).unwrap();
+        film.save(&hdr).unwrap();
+        // Saving over an existing file replaces it.
+        film.save(&png).unwrap();
+        assert_eq!(entries(&dir), vec!["out.HDR", "out.png"]);
+
+        let back = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(back.dimensions(), (5, 3));
+        assert_eq!(back.into_raw(), film.to_srgb8());
+
+        let back = image::open(&hdr).unwrap().to_rgb32f();
+        for (a, b) in back.pixels().zip(&film.pixels) {
+            // RGBE keeps 8 mantissa bits per channel relative to the largest channel.
+            assert!((Vec3::from_array(a.0) - *b).abs().max_element() < 1.0 / 128.0);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn failed_write_leaves_nothing() {
+        let dir = scratch_dir("fail");
+        let missing = dir.join("no-such-dir").join("out.png");
+        let err = gradient().save(&missing).unwrap_err();
+        assert!(
+            matches!(err, Error::Io { ref path, .. } if path == &missing),
+            "{err}"
+        );
+        assert!(entries(&dir).is_empty());
+
+        // An encoder error (a 0x0 image) must not leave the temp file either.
+        let empty = dir.join("empty.png");
+        assert!(Film::new(0, 0).save(&empty).is_err());
+        assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn unknown_extension_names_the_supported_ones() {
+        let dir = scratch_dir("ext");
+        for name in ["out.jpg", "out"] {
+            let err = gradient().save(&dir.join(name)).unwrap_err();
+            let msg = err.to_string();
+            assert!(msg.contains(".png") && msg.contains(".hdr"), "{msg}");
+        }
+        assert!(entries(&dir).is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
