@@ -121,7 +121,10 @@ impl RenderJob {
             },
             features: scene.features.names(),
             accel: accel.info(),
-            rays: RayTotals { by_kind: out.rays, total },
+            rays: RayTotals {
+                by_kind: out.rays,
+                total,
+            },
             time_ms: time,
             mrays_per_s: total as f64 / (time.render.max(1e-6) * 1e3),
             nonfinite_samples: out.nonfinite_samples,
@@ -167,7 +170,11 @@ impl RenderReport {
         let mut s = String::new();
         s += &format!(
             "scene    {}: {} triangles, {} spheres, {} lights, {} materials\n",
-            self.scene, self.primitives.triangles, self.primitives.spheres, self.primitives.lights, self.primitives.materials
+            self.scene,
+            self.primitives.triangles,
+            self.primitives.spheres,
+            self.primitives.lights,
+            self.primitives.materials
         );
         s += &format!("features {}\n", self.features.join(", "));
         for a in accel {
@@ -189,9 +196,15 @@ impl RenderReport {
             t.write,
             t.total()
         );
-        s += &format!("speed    {:.2} Mrays/s on {} threads\n", self.mrays_per_s, self.threads);
+        s += &format!(
+            "speed    {:.2} Mrays/s on {} threads\n",
+            self.mrays_per_s, self.threads
+        );
         if self.nonfinite_samples > 0 {
-            s += &format!("warning  {} samples were NaN or infinite and were written as black\n", self.nonfinite_samples);
+            s += &format!(
+                "warning  {} samples were NaN or infinite and were written as black\n",
+                self.nonfinite_samples
+            );
         }
         s
     }
@@ -201,9 +214,18 @@ impl RenderReport {
 /// rename, so an interrupted or failed write never leaves a truncated file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().ok_or_else(|| Error::parameter("output", format!("{} is not a file name", path.display())))?;
-    let tmp = dir.join(format!(".{}.tmp-{}", name.to_string_lossy(), std::process::id()));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path.file_name().ok_or_else(|| {
+        Error::parameter("output", format!("{} is not a file name", path.display()))
+    })?;
+    let tmp = dir.join(format!(
+        ".{}.tmp-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;

@@ -19,7 +19,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
-// pub mod job;
+pub mod job;
 pub mod scene;
 pub mod simd;
 pub mod stats;

@@ -146,7 +146,7 @@ pub fn cosine_dir(n: Vec3, u1: f32, u2: f32) -> Vec3 {
 
 /// A tracing mode under test: how a batch of rays (one 8x8 tile, 4x4-block ordered,
 /// compacted to valid rays) is traced.
-pub trait TraceMode: Sync {
+pub trait TraceMode: Send + Sync {
     fn name(&self) -> &'static str;
     fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]);
     fn occluded(&self, rays: &[Ray], out: &mut [bool]);
@@ -476,20 +476,7 @@ pub fn median(v: &[f64]) -> f64 {
     }
 }
 
-/// The instruction set the kernels were compiled for.
-pub fn instruction_set() -> &'static str {
-    if cfg!(target_feature = "avx512f") {
-        "AVX-512"
-    } else if cfg!(target_feature = "avx2") {
-        "AVX2"
-    } else if cfg!(target_feature = "sse4.1") {
-        "SSE4.1"
-    } else if cfg!(target_feature = "sse2") {
-        "SSE2"
-    } else {
-        "scalar"
-    }
-}
+pub use crate::simd::instruction_set;
 
 /// Runs every workload for one mode at one thread count (inside the caller's pool).
 pub fn run_mode(
@@ -521,4 +508,155 @@ pub fn run_mode(
             }
         })
         .collect()
+}
+
+/// The mesh a benchmark runs on: its name, every vertex (for the framing) and its
+/// triangles in file order.
+pub struct BenchMesh {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    pub triangles: Triangles,
+}
+
+/// Triangles of the default procedural mesh: Bunny-scale (the Stanford Bunny has 69,451).
+pub const DEFAULT_MESH_TRIANGLES: usize = 69_451;
+
+impl BenchMesh {
+    /// An OBJ file (polygons split as fans, as the protocol says).
+    pub fn from_obj(path: &std::path::Path) -> crate::Result<Self> {
+        let obj = crate::scene::load::load_obj(path)?;
+        let corners: Vec<[Vec3; 3]> = obj
+            .indices
+            .iter()
+            .map(|t| {
+                [
+                    obj.positions[t[0] as usize],
+                    obj.positions[t[1] as usize],
+                    obj.positions[t[2] as usize],
+                ]
+            })
+            .collect();
+        Ok(BenchMesh {
+            name: path.display().to_string(),
+            positions: obj.positions,
+            triangles: Triangles::from_corners(&corners),
+        })
+    }
+
+    /// The procedural Bunny-scale mesh (`scene::procedural::tessellated_mesh`).
+    pub fn procedural(triangles: usize) -> Self {
+        let mut b = crate::scene::SceneBuilder::new();
+        let m = b.add_material(crate::scene::Material::default());
+        crate::scene::procedural::tessellated_mesh(&mut b, triangles, Vec3::ZERO, 1.0, m);
+        let mesh = &b.mesh;
+        let positions = (0..mesh.vertex_count() as u32)
+            .map(|i| mesh.vertex(i))
+            .collect();
+        let corners: Vec<[Vec3; 3]> = (0..mesh.len()).map(|t| mesh.corners(t)).collect();
+        BenchMesh {
+            name: format!("procedural tessellated mesh ({} triangles)", corners.len()),
+            positions,
+            triangles: Triangles::from_corners(&corners),
+        }
+    }
+}
+
+/// Settings of a benchmark run.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub modes: Vec<String>,
+    /// Thread counts; 0 means all cores.
+    pub threads: Vec<usize>,
+    pub reps: usize,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// Runs every mode at every thread count. `report` receives each row as it is measured.
+pub fn run(
+    mesh: &BenchMesh,
+    opts: &BenchOptions,
+    mut report: impl FnMut(&BenchRow),
+) -> crate::Result<Vec<BenchRow>> {
+    if opts.reps < 1 {
+        return Err(crate::Error::parameter("reps", "at least 1 timed pass"));
+    }
+    crate::integrator::validate_dimensions(opts.width, opts.height, 1, 0)?;
+    for m in &opts.modes {
+        if !MODES.contains(&m.as_str()) {
+            return Err(crate::Error::parameter(
+                "mode",
+                format!("unknown mode '{m}', expected one of {}", MODES.join(", ")),
+            ));
+        }
+    }
+    let protocol = Protocol::new(
+        &mesh.positions,
+        mesh.triangles.clone(),
+        opts.width,
+        opts.height,
+    );
+    let mut rows = Vec::new();
+    for &t in &opts.threads {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .map_err(|e| crate::Error::parameter("threads", e.to_string()))?;
+        let threads = pool.current_num_threads();
+        for m in &opts.modes {
+            // Build time: median of 5 builds after a warm-up, in this pool.
+            let mut times = Vec::new();
+            let mut mode = None;
+            for _ in 0..6 {
+                let start = Instant::now();
+                let built = pool
+                    .install(|| build_mode(m, &mesh.triangles))
+                    .expect("mode names were checked");
+                times.push(start.elapsed().as_secs_f64() * 1e3);
+                mode = Some(built);
+            }
+            let build_ms = median(&times[1..]);
+            let mode = mode.expect("built at least once");
+            for row in
+                pool.install(|| run_mode(&protocol, mode.as_ref(), threads, opts.reps, build_ms))
+            {
+                report(&row);
+                rows.push(row);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// A fixed-width table row for humans.
+pub fn table_header() -> String {
+    format!(
+        "{:<12} {:<8} {:>7} {:>9} {:>9} {:>16} {:>9} {:>9} {:>9} {:>9}",
+        "mode",
+        "workload",
+        "threads",
+        "rays",
+        "hits/occ",
+        "sum_t",
+        "Mrays/s",
+        "min",
+        "max",
+        "build ms"
+    )
+}
+
+pub fn table_row(r: &BenchRow) -> String {
+    format!(
+        "{:<12} {:<8} {:>7} {:>9} {:>9} {:>16.6} {:>9.2} {:>9.2} {:>9.2} {:>9.2}",
+        r.mode,
+        r.workload,
+        r.threads,
+        r.rays,
+        r.hits_or_occluded,
+        r.sum_t,
+        r.mrays_median,
+        r.mrays_min,
+        r.mrays_max,
+        r.build_ms
+    )
 }
