@@ -8,7 +8,7 @@ use crate::integrator::{self, RenderOptions};
 use crate::scene::{self, Scene};
 use crate::stats::{PhaseTimes, RayCounts, ms_since};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -85,6 +85,7 @@ impl RenderJob {
     }
 
     fn run_in_pool(&self, threads: usize, progress: Option<Progress>) -> Result<RenderReport> {
+        crate::film::check_image_path(&self.output)?;
         let mut time = PhaseTimes::default();
         let t = Instant::now();
         let scene = scene::load::load_scene(&self.scene)?;
@@ -208,32 +209,4 @@ impl RenderReport {
         }
         s
     }
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory and a
-/// rename, so an interrupted or failed write never leaves a truncated file.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path.file_name().ok_or_else(|| {
-        Error::parameter("output", format!("{} is not a file name", path.display()))
-    })?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })
 }

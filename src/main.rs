@@ -4,7 +4,9 @@
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use packet_render::accel::AccelKind;
-use packet_render::job::{Overrides, Progress, RenderJob, write_atomic};
+use packet_render::film::write_atomic;
+use packet_render::job::{Overrides, Progress, RenderJob};
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -133,7 +135,10 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
     }
     if let Some(path) = args.stats_json {
         let json = serde_json::to_string_pretty(&report).expect("report serialises");
-        write_atomic(&path, json.as_bytes())?;
+        write_atomic(&path, |out| {
+            out.write_all(json.as_bytes())
+                .map_err(|e| packet_render::Error::io(&path, e))
+        })?;
     }
     Ok(())
 }

@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use packet_render::accel::{Accel, AccelKind, BruteForce, Primitives};
-use packet_render::geometry::{Aabb, Ray};
+use packet_render::geometry::{Aabb, Ray, RayQuery};
 use rayon::prelude::*;
 
 fn bounds_of<P: Primitives>(p: &P) -> Aabb {
@@ -30,7 +30,16 @@ fn assert_matches_bruteforce<P: Primitives + Clone + 'static>(name: &str, prims:
                 let got = accel.closest_hit(r);
                 let same = match (want, got) {
                     (None, None) => true,
-                    (Some(a), Some(b)) => (a.prim == b.prim && a.t == b.t) || a.t == b.t,
+                    // the same primitive, or a true tie: the other primitive is hit at the same t
+                    (Some(a), Some(b)) => {
+                        a.t == b.t
+                            && (a.prim == b.prim
+                                || RayQuery::new(r)
+                                    .and_then(|q| {
+                                        prims.intersect(b.prim as usize, &q, f32::INFINITY)
+                                    })
+                                    .is_some_and(|h| h.t == a.t))
+                    }
                     _ => false,
                 };
                 let occluded = accel.any_hit(r);

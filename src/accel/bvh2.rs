@@ -185,9 +185,9 @@ impl Bins {
     }
 
     fn add(&mut self, k: [usize; 3], b: &BBox) {
-        for axis in 0..3 {
-            self.counts[axis][k[axis]] += 1;
-            self.bounds[axis][k[axis]].grow(b);
+        for (axis, &bin) in k.iter().enumerate() {
+            self.counts[axis][bin] += 1;
+            self.bounds[axis][bin].grow(b);
         }
     }
 }
@@ -316,16 +316,15 @@ impl Builder<'_> {
         }
 
         let mut split = None;
-        if depth < MEDIAN_DEPTH && nb.centroids.extent().max_element() > 0.0 {
-            if let Some(s) = self.best_split(ids, &nb) {
-                let leaf_cost = self.opts.intersection_cost * n as f32;
-                if n <= self.opts.max_leaf && leaf_cost <= s.cost {
-                    return leaf();
-                }
-                let (m, left, right) = self.partition(ids, &nb.centroids, s);
-                if m > 0 && m < n {
-                    split = Some((m, left, right));
-                }
+        let sah = depth < MEDIAN_DEPTH && nb.centroids.extent().max_element() > 0.0;
+        if let Some(s) = sah.then(|| self.best_split(ids, &nb)).flatten() {
+            let leaf_cost = self.opts.intersection_cost * n as f32;
+            if n <= self.opts.max_leaf && leaf_cost <= s.cost {
+                return leaf();
+            }
+            let (m, left, right) = self.partition(ids, &nb.centroids, s);
+            if m > 0 && m < n {
+                split = Some((m, left, right));
             }
         }
         let (mid, left, right) = match split {

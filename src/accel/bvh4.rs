@@ -590,13 +590,13 @@ impl<P: Primitives> Bvh4<P> {
                 let mut order = [(0usize, 0f32); 4];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
-                for c in 0..4 {
+                for (c, slot) in enters.iter_mut().enumerate() {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
                     let (enter, bits) = p.child_test(node, c, tmax);
                     if bits & active != 0 {
-                        enters[c] = enter;
+                        *slot = enter;
                         // insertion sort, far to near, by the representative lane's entry
                         let key = enter.to_array().as_ref()[rep];
                         let mut j = n;

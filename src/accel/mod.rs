@@ -156,17 +156,16 @@ impl SceneAccel {
     }
 
     pub fn closest_hit(&self, ray: &Ray) -> Option<SceneHit> {
-        let mut best: Option<SceneHit> = None;
-        if let Some(a) = &self.triangles {
-            if let Some(h) = a.closest_hit(ray) {
-                best = Some(SceneHit {
-                    t: h.t,
-                    prim: PrimRef::Triangle(h.prim),
-                    u: h.u,
-                    v: h.v,
-                });
-            }
-        }
+        let mut best: Option<SceneHit> = self
+            .triangles
+            .as_ref()
+            .and_then(|a| a.closest_hit(ray))
+            .map(|h| SceneHit {
+                t: h.t,
+                prim: PrimRef::Triangle(h.prim),
+                u: h.u,
+                v: h.v,
+            });
         if let Some(a) = &self.spheres {
             let mut r = *ray;
             if let Some(b) = &best {

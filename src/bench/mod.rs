@@ -333,8 +333,8 @@ impl Protocol {
                 let mut pixels = Vec::with_capacity(64);
                 let mut rays = Vec::with_capacity(64);
                 let mut slots = Vec::with_capacity(64);
-                let mut hits = vec![None; 64];
-                let mut occ = vec![false; 64];
+                let mut hits = [None; 64];
+                let mut occ = [false; 64];
                 let mut count = 0u64;
                 for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
                     for tx in (0..w).step_by(TILE as usize) {

@@ -31,32 +31,16 @@ impl Film {
     /// any error the temporary file is removed, so a failed save leaves nothing behind.
     pub fn save(&self, path: &Path) -> Result<()> {
         let format = format_for(path)?;
-        let tmp = temp_path_for(path)?;
-        let result = self
-            .write_to(&tmp, path, format)
-            .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
-        match result {
-            Ok(()) => {
-                sync_parent_dir(path);
-                Ok(())
-            }
-            Err(e) => {
-                // The temp file may not exist (creation failed); nothing to report then.
-                let _ = std::fs::remove_file(&tmp);
-                Err(e)
-            }
-        }
+        write_atomic(path, |out| self.encode(out, path, format))
     }
 
-    fn write_to(&self, tmp: &Path, target: &Path, format: Format) -> Result<()> {
-        let file = File::create(tmp).map_err(|e| Error::io(target, e))?;
-        let mut out = BufWriter::new(file);
+    fn encode(&self, out: &mut BufWriter<File>, target: &Path, format: Format) -> Result<()> {
         let image_err = |e: image::ImageError| Error::Image {
             path: target.to_path_buf(),
             message: e.to_string(),
         };
         match format {
-            Format::Png => PngEncoder::new(&mut out)
+            Format::Png => PngEncoder::new(&mut *out)
                 .write_image(
                     &self.to_srgb8(),
                     self.width,
@@ -73,17 +57,52 @@ impl Film {
                     .iter()
                     .map(|p| image::Rgb([finite(p.x), finite(p.y), finite(p.z)]))
                     .collect();
-                HdrEncoder::new(&mut out)
+                HdrEncoder::new(&mut *out)
                     .encode(&rgb, self.width as usize, self.height as usize)
                     .map_err(image_err)?
             }
         }
+        Ok(())
+    }
+}
+
+/// Checks that `path` names a supported image format, so a render can refuse a bad
+/// output path before doing any work.
+pub fn check_image_path(path: &Path) -> Result<()> {
+    format_for(path).map(|_| ())
+}
+
+/// Writes a file atomically: `write` fills a temporary file in the target's directory,
+/// which is flushed to disk and renamed over `path`. A reader never sees a half-written
+/// file (an interrupted render included), an existing file is only replaced by a
+/// complete one, and on any error the temporary file is removed.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let tmp = temp_path_for(path)?;
+    let result = (|| {
+        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let mut out = BufWriter::new(file);
+        write(&mut out)?;
         let file = out
             .into_inner()
-            .map_err(|e| Error::io(target, e.into_error()))?;
+            .map_err(|e| Error::io(path, e.into_error()))?;
         // Data on disk before the rename makes it visible, or a crash could leave a
         // complete-looking name over an empty file.
-        file.sync_all().map_err(|e| Error::io(target, e))
+        file.sync_all().map_err(|e| Error::io(path, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    })();
+    match result {
+        Ok(()) => {
+            sync_parent_dir(path);
+            Ok(())
+        }
+        Err(e) => {
+            // The temp file may not exist (creation failed); nothing to report then.
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
     }
 }
 

@@ -17,7 +17,8 @@ pub fn intersect_sphere(q: &RayQuery, center: Vec3, radius: f32, tmax: f32) -> O
     let l = f + (b / a) * d;
     let r2 = radius * radius;
     let disc = a * (r2 - l.dot(l));
-    if !(disc >= 0.0) {
+    // NaN (degenerate input) fails the comparison and misses too.
+    if disc.is_nan() || disc < 0.0 {
         return None;
     }
     let c = f.dot(f) - r2;

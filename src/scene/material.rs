@@ -104,13 +104,13 @@ impl Material {
                 return Err(format!("{name} must be finite and non-negative, got {c}"));
             }
         }
-        if let Some(c) = &self.checker {
-            if !(c.scale.is_finite() && c.scale > 0.0)
-                || !c.color_a.is_finite()
-                || !c.color_b.is_finite()
-            {
-                return Err("checker needs finite colours and a positive scale".into());
-            }
+        if let Some(c) = &self.checker
+            && !(c.scale.is_finite()
+                && c.scale > 0.0
+                && c.color_a.is_finite()
+                && c.color_b.is_finite())
+        {
+            return Err("checker needs finite colours and a positive scale".into());
         }
         if !(self.shininess.is_finite() && self.shininess >= 0.0) {
             return Err(format!(

@@ -154,9 +154,13 @@ pub fn random_rays(bounds: &Aabb, n: usize, seed: u64) -> Vec<Ray> {
             _ => {
                 let axis = (rng.next_u64() % 3) as usize;
                 let mut d = Vec3::ZERO;
-                d[axis] = if rng.next_u64() % 2 == 0 { 1.0 } else { -1.0 };
+                d[axis] = if rng.next_u64().is_multiple_of(2) {
+                    1.0
+                } else {
+                    -1.0
+                };
                 for k in 0..3 {
-                    if k != axis && rng.next_u64() % 2 == 0 {
+                    if k != axis && rng.next_u64().is_multiple_of(2) {
                         d[k] = -0.0;
                     }
                 }

@@ -1,0 +1,244 @@
+//! The `packet-render` binary as a user meets it: renders, stats, bench output, and
+//! bad input that exits non-zero with a located message and writes nothing.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_packet-render"))
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("packet-render-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn scene(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+#[test]
+fn renders_a_shipped_scene_with_stats() {
+    let dir = tmp_dir("render");
+    let out = dir.join("w.png");
+    let json = dir.join("w.json");
+    let o = run(&[
+        "render",
+        &scene("whitted.toml"),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "48",
+        "--height",
+        "32",
+        "--stats-json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (48, 32));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rays = &s["rays"];
+    assert_eq!(rays["camera"], 48 * 32);
+    assert!(rays["shadow"].as_u64().unwrap() > 0 && rays["reflection"].as_u64().unwrap() > 0);
+    assert!(
+        rays["refraction"].as_u64().unwrap() > 0,
+        "the Whitted room has glass"
+    );
+    for phase in ["load", "build", "render", "write"] {
+        assert!(
+            s["time_ms"][phase].as_f64().unwrap() >= 0.0,
+            "time_ms.{phase}"
+        );
+    }
+    let features: Vec<&str> = s["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert!(features.contains(&"glass") && features.contains(&"mirror"));
+    // the stats block names rays by kind and time by phase
+    let e = stderr(&o);
+    assert!(
+        e.contains("rays")
+            && e.contains("refraction")
+            && e.contains("render")
+            && e.contains("Mrays/s"),
+        "{e}"
+    );
+}
+
+#[test]
+fn images_are_identical_at_any_thread_count() {
+    let dir = tmp_dir("threads");
+    let mut bytes = Vec::new();
+    for t in ["1", "2"] {
+        let out = dir.join(format!("t{t}.png"));
+        let o = run(&[
+            "render",
+            &scene("whitted.toml"),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "40",
+            "--height",
+            "40",
+            "--spp",
+            "4",
+            "--seed",
+            "7",
+            "--threads",
+            t,
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        bytes.push(std::fs::read(&out).unwrap());
+    }
+    assert_eq!(bytes[0], bytes[1]);
+}
+
+/// Runs a render that must fail: non-zero exit, an `error:` line containing `expect`,
+/// no panic, and no output file.
+fn assert_fails(args: &[&str], out: &Path, expect: &str) {
+    let mut all = vec!["render"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["-o", out.to_str().unwrap(), "--quiet"]);
+    let o = run(&all);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "args {args:?}: {e}");
+    assert!(
+        e.starts_with("error: ") && e.contains(expect),
+        "args {args:?}: expected '{expect}' in: {e}"
+    );
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(!out.exists(), "args {args:?}: an output file was written");
+    let leftovers: Vec<_> = std::fs::read_dir(out.parent().unwrap()).unwrap().collect();
+    assert!(leftovers.iter().all(|f| {
+        !f.as_ref()
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .contains(".tmp")
+    }));
+}
+
+#[test]
+fn bad_input_gives_located_errors_and_writes_nothing() {
+    let dir = tmp_dir("bad");
+    let out = dir.join("never.png");
+    let missing = dir.join("missing.toml");
+    assert_fails(&[missing.to_str().unwrap()], &out, "missing.toml");
+
+    let syntax = dir.join("syntax.toml");
+    std::fs::write(&syntax, "[render]\nwidth = 64\nheight = = 3\n").unwrap();
+    assert_fails(&[syntax.to_str().unwrap()], &out, "syntax.toml:3:");
+
+    let nan_obj = dir.join("nan.obj");
+    std::fs::write(&nan_obj, "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n").unwrap();
+    assert_fails(&[nan_obj.to_str().unwrap()], &out, "nan.obj:3");
+
+    let bad_index = dir.join("index.obj");
+    std::fs::write(&bad_index, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    assert_fails(&[bad_index.to_str().unwrap()], &out, "index.obj:4");
+
+    let whitted = scene("whitted.toml");
+    assert_fails(&[&whitted, "--width", "0"], &out, "width");
+    assert_fails(&[&whitted, "--spp", "1000000000"], &out, "spp");
+    assert_fails(&[&whitted, "--max-depth", "100000"], &out, "depth");
+
+    // an unsupported output format is refused before rendering
+    let o = run(&[
+        "render",
+        &whitted,
+        "-o",
+        dir.join("x.bmp").to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains(".png"), "{}", stderr(&o));
+    assert!(!dir.join("x.bmp").exists());
+
+    // clap rejects unknown structures with exit code 2 and the list of names
+    let o = run(&[
+        "render",
+        &whitted,
+        "-o",
+        out.to_str().unwrap(),
+        "--accel",
+        "octopus",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bvh4"));
+}
+
+#[test]
+fn bench_prints_the_protocol_fields_and_modes_agree() {
+    let o = run(&[
+        "bench",
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--reps",
+        "1",
+        "--threads",
+        "1",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect();
+    assert_eq!(rows.len(), 9, "3 modes x 3 workloads");
+    let fields = [
+        "tracer",
+        "mode",
+        "workload",
+        "threads",
+        "rays",
+        "hits_or_occluded",
+        "sum_t",
+        "mrays_median",
+        "mrays_min",
+        "mrays_max",
+        "build_ms",
+    ];
+    for r in &rows {
+        for f in fields {
+            assert!(!r[f].is_null(), "missing field {f} in {r}");
+        }
+    }
+    // every mode reports the same checksums for the same workload
+    for w in ["primary", "shadow", "diffuse"] {
+        let of: Vec<_> = rows.iter().filter(|r| r["workload"] == w).collect();
+        for r in &of {
+            assert_eq!(r["hits_or_occluded"], of[0]["hits_or_occluded"], "{w}");
+            let (a, b) = (
+                r["sum_t"].as_f64().unwrap(),
+                of[0]["sum_t"].as_f64().unwrap(),
+            );
+            assert!(
+                (a - b).abs() <= 1e-6 * b.abs().max(1.0),
+                "{w}: sum_t {a} vs {b}"
+            );
+        }
+    }
+    assert!(rows[0]["hits_or_occluded"].as_u64().unwrap() > 0);
+}
