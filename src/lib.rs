@@ -20,6 +20,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod job;
+pub mod plot;
 pub mod scene;
 pub mod simd;
 pub mod stats;
