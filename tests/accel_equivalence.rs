@@ -69,6 +69,13 @@ fn bumpy_sphere_mesh() {
 }
 
 #[test]
+fn procedural_tessellated_mesh() {
+    let prims = procedural_mesh(20_000);
+    let rays = random_rays(&bounds_of(&prims), 30_000, 5);
+    assert_matches_bruteforce("tessellated", prims, &rays);
+}
+
+#[test]
 fn triangle_soup_with_slivers() {
     let prims = triangle_soup(3000, 7);
     let rays = random_rays(&bounds_of(&prims), 40_000, 2);

@@ -110,30 +110,20 @@ pub fn triangle_soup(n: usize, seed: u64) -> Triangles {
     Triangles::from_corners(&corners)
 }
 
-/// Spheres arranged like a sphereflake: each sphere gets 9 children of a third of its
-/// radius on its surface (a self-contained stand-in for the procedural generator).
-pub fn flake_spheres(levels: u32) -> Spheres {
-    let mut s = Spheres::default();
-    fn rec(s: &mut Spheres, c: Vec3, r: f32, up: Vec3, level: u32) {
-        s.center.push(c);
-        s.radius.push(r);
-        if level == 0 {
-            return;
-        }
-        let (t, b) = packet_render::geometry::orthonormal_basis(up);
-        for k in 0..9 {
-            let (elev, az) = if k < 6 {
-                (0.0f32, k as f32 * std::f32::consts::TAU / 6.0)
-            } else {
-                (1.0f32, (k - 6) as f32 * std::f32::consts::TAU / 3.0 + 0.5)
-            };
-            let dir = (elev.cos() * (az.cos() * t + az.sin() * b) + elev.sin() * up).normalize();
-            let cr = r / 3.0;
-            rec(s, c + dir * (r + cr), cr, dir, level - 1);
-        }
-    }
-    rec(&mut s, Vec3::ZERO, 1.0, Vec3::Y, levels);
-    s
+/// The sphereflake of `scene::procedural` at `level` (1 + 9 + ... + 9^level spheres).
+pub fn flake_spheres(level: u32) -> Spheres {
+    let mut b = packet_render::scene::SceneBuilder::new();
+    let m = b.add_material(packet_render::scene::Material::default());
+    packet_render::scene::procedural::sphereflake(&mut b, level, Vec3::ZERO, 1.0, m);
+    Spheres::from_set(&b.spheres)
+}
+
+/// The tessellated mesh of `scene::procedural` with about `n` triangles.
+pub fn procedural_mesh(n: usize) -> Triangles {
+    let mut b = packet_render::scene::SceneBuilder::new();
+    let m = b.add_material(packet_render::scene::Material::default());
+    packet_render::scene::procedural::tessellated_mesh(&mut b, n, Vec3::ZERO, 1.0, m);
+    Triangles::from_mesh(&b.mesh)
 }
 
 /// `n` rays: a third from outside the bounds toward random interior points, a third
