@@ -525,7 +525,12 @@ impl<P: Primitives> Bvh4<P> {
         }
         for g in 0..setup.groups {
             let p = setup.group(g);
-            let hits = self.packet_closest_group(&p, rays, setup.group_mask[g]);
+            let mask = setup.group_mask[g];
+            let hits = if setup.shared_origin {
+                self.packet_closest_group::<L, true>(&p, rays, mask)
+            } else {
+                self.packet_closest_group::<L, false>(&p, rays, mask)
+            };
             for_each_bit(hits.hit, |i| {
                 out[i] = Some(Hit {
                     t: hits.t.as_ref()[i],
@@ -537,7 +542,7 @@ impl<P: Primitives> Bvh4<P> {
         }
     }
 
-    fn packet_closest_group<L: Lanes>(
+    fn packet_closest_group<L: Lanes, const SHARED: bool>(
         &self,
         p: &PacketRays<L>,
         rays: &[Ray],
@@ -594,7 +599,7 @@ impl<P: Primitives> Bvh4<P> {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let (enter, bits) = p.child_test(node, c, tmax);
+                    let (enter, bits) = p.child_test::<SHARED>(node, c, tmax);
                     if bits & active != 0 {
                         *slot = enter;
                         // insertion sort, far to near, by the representative lane's entry
@@ -625,7 +630,7 @@ impl<P: Primitives> Bvh4<P> {
                         }
                         let corners = g.corners(lane);
                         let (t, u, v, bits, edge) =
-                            triangle_packet(&p.shear, &corners, tmax, active);
+                            triangle_packet::<L, SHARED>(&p.shear, &corners, tmax, active);
                         let mut bits = bits;
                         let (mut t, mut u, mut v) = (t, u, v);
                         if edge != 0 {
@@ -691,13 +696,23 @@ impl<P: Primitives> Bvh4<P> {
         }
         for g in 0..setup.groups {
             let p = setup.group(g);
-            let occluded = self.packet_any_group(&p, rays, setup.group_mask[g]);
+            let mask = setup.group_mask[g];
+            let occluded = if setup.shared_origin {
+                self.packet_any_group::<L, true>(&p, rays, mask)
+            } else {
+                self.packet_any_group::<L, false>(&p, rays, mask)
+            };
             for_each_bit(occluded, |i| out[i] = true);
         }
     }
 
     /// Bits of the lanes in `mask` that hit something within their interval.
-    fn packet_any_group<L: Lanes>(&self, p: &PacketRays<L>, rays: &[Ray], mask: u32) -> u32 {
+    fn packet_any_group<L: Lanes, const SHARED: bool>(
+        &self,
+        p: &PacketRays<L>,
+        rays: &[Ray],
+        mask: u32,
+    ) -> u32 {
         let Leaves::Triangles(groups) = &self.leaves else {
             unreachable!("packets need triangle leaves")
         };
@@ -725,7 +740,7 @@ impl<P: Primitives> Bvh4<P> {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let (enter, bits) = p.child_test(node, c, p.tmax);
+                    let (enter, bits) = p.child_test::<SHARED>(node, c, p.tmax);
                     if bits & active != 0 {
                         match first {
                             None => first = Some((node.children[c], enter)),
@@ -747,7 +762,7 @@ impl<P: Primitives> Bvh4<P> {
                         let live = active & !occluded;
                         let corners = g.corners(lane);
                         let (_, _, _, bits, edge) =
-                            triangle_packet(&p.shear, &corners, p.tmax, live);
+                            triangle_packet::<L, SHARED>(&p.shear, &corners, p.tmax, live);
                         occluded |= bits;
                         let mut m = edge;
                         while m != 0 {
@@ -785,10 +800,20 @@ impl<P: Primitives> Bvh4<P> {
 impl<L: Lanes> PacketRays<L> {
     /// Slab test of child `c` for every lane: entry distances and hit bits.
     #[inline(always)]
-    fn child_test(&self, node: &Bvh4Node, c: usize, tmax: L) -> (L, u32) {
+    fn child_test<const SHARED: bool>(&self, node: &Bvh4Node, c: usize, tmax: L) -> (L, u32) {
         let p = &node.planes;
-        let d = |plane: usize, a: usize| (L::splat(p[plane][c]) - self.o[a]) * self.inv[a];
-        let f = |plane: usize, a: usize| (L::splat(p[plane][c]) - self.o[a]) * self.inv_far[a];
+        let o = &self.shear.shared_origin;
+        // With a shared origin, `plane - o` is one scalar per plane, broadcast: the same
+        // value every lane would compute.
+        let rel = |plane: usize, a: usize| {
+            if SHARED {
+                L::splat(p[plane][c] - o[a])
+            } else {
+                L::splat(p[plane][c]) - self.o[a]
+            }
+        };
+        let d = |plane: usize, a: usize| rel(plane, a) * self.inv[a];
+        let f = |plane: usize, a: usize| rel(plane, a) * self.inv_far[a];
         let enter =
             d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
         let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tmax)));
@@ -816,6 +841,9 @@ struct PacketSetup<L: Lanes> {
     tmin: L,
     tmax: L,
     valid: u32,
+    /// Every valid lane starts at the first valid lane's origin (camera rays).
+    shared_origin: bool,
+    origin0: [f32; 3],
     groups: usize,
     group_mask: [u32; 3],
     /// (octant sign bits, kz) per group.
@@ -869,6 +897,15 @@ impl<L: Lanes> PacketSetup<L> {
         let is_y = !is_x & az.le(ay).bitmask();
         let signs = [d[0].sign_bits(), d[1].sign_bits(), d[2].sign_bits()];
 
+        let (shared_origin, origin0) = match valid {
+            0 => (false, [0.0; 3]),
+            v => {
+                let r0 = &rays[v.trailing_zeros() as usize];
+                let same = |k: usize, x: f32| o[k].eq(L::splat(x)).bitmask();
+                let same_bits = same(0, r0.origin.x) & same(1, r0.origin.y) & same(2, r0.origin.z);
+                (valid & !same_bits == 0, r0.origin.to_array())
+            }
+        };
         let mut s = PacketSetup {
             o,
             d,
@@ -876,6 +913,8 @@ impl<L: Lanes> PacketSetup<L> {
             tmin,
             tmax,
             valid,
+            shared_origin,
+            origin0,
             groups: 0,
             group_mask: [0; 3],
             group_key: [(0, 0); 3],
@@ -937,6 +976,7 @@ impl<L: Lanes> PacketSetup<L> {
             far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
             shear: PacketShear {
                 o: self.o,
+                shared_origin: self.origin0,
                 kx,
                 ky,
                 kz,

@@ -156,6 +156,9 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
 #[derive(Clone, Copy)]
 pub struct PacketShear<L: Lanes> {
     pub o: [L; 3],
+    /// The origin every lane shares, when they do (camera rays): then `corner - o` is
+    /// computed once in scalar and broadcast, with the same result in every lane.
+    pub shared_origin: [f32; 3],
     pub kx: usize,
     pub ky: usize,
     pub kz: usize,
@@ -168,15 +171,23 @@ pub struct PacketShear<L: Lanes> {
 /// A packet against one triangle: `(t, u, v, hit bits)` for lanes in `active` with a
 /// hit in `(tmin, tmax)`. Lanes with an exactly-zero edge function are returned in
 /// `edge` for the caller to redo with the scalar test.
+///
+/// `SHARED`: every lane has the origin `p.shared_origin`.
 #[inline(always)]
-pub fn triangle_packet<L: Lanes>(
+pub fn triangle_packet<L: Lanes, const SHARED: bool>(
     p: &PacketShear<L>,
     corners: &[Vec3; 3],
     tmax: L,
     active: u32,
 ) -> (L, L, L, u32, u32) {
     let (kx, ky, kz) = (p.kx, p.ky, p.kz);
-    let rel = |c: usize, k: usize| L::splat(corners[c][k]) - p.o[k];
+    let rel = |c: usize, k: usize| {
+        if SHARED {
+            L::splat(corners[c][k] - p.shared_origin[k])
+        } else {
+            L::splat(corners[c][k]) - p.o[k]
+        }
+    };
     let (a_x, a_y, a_z) = (rel(0, kx), rel(0, ky), rel(0, kz));
     let (b_x, b_y, b_z) = (rel(1, kx), rel(1, ky), rel(1, kz));
     let (c_x, c_y, c_z) = (rel(2, kx), rel(2, ky), rel(2, kz));
