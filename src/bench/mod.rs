@@ -100,6 +100,34 @@ impl BenchCamera {
         }
     }
 
+    /// Camera rays of `pixels` appended to `out`, sixteen at a time: the arithmetic of
+    /// [`dir`](Self::dir) lane by lane (IEEE division and square root round the same in
+    /// SIMD lanes), so the rays are bit-identical to the scalar ones.
+    pub fn rays_into(&self, pixels: &[(u32, u32)], out: &mut Vec<Ray>) {
+        use crate::simd::{F16, Lanes};
+        for chunk in pixels.chunks(16) {
+            let mut xs = [0.0f32; 16];
+            let mut ys = [0.0f32; 16];
+            for (k, &(x, y)) in chunk.iter().enumerate() {
+                xs[k] = x as f32;
+                ys[k] = y as f32;
+            }
+            let s = F16::splat;
+            let (x, y) = (F16::from_array(xs), F16::from_array(ys));
+            let sx = (s(2.0) * (x + s(0.5)) / s(self.width as f32) - s(1.0))
+                * s(self.tan_half)
+                * s(self.aspect);
+            let sy = (s(1.0) - s(2.0) * (y + s(0.5)) / s(self.height as f32)) * s(self.tan_half);
+            let v = [0, 1, 2].map(|a| s(self.f[a]) + s(self.r[a]) * sx + s(self.u[a]) * sy);
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            let inv = s(1.0) / len;
+            let d = v.map(|c| (c * inv).to_array());
+            out.extend(
+                (0..chunk.len()).map(|k| Ray::new(self.eye, Vec3::new(d[0][k], d[1][k], d[2][k]))),
+            );
+        }
+    }
+
     #[inline]
     pub fn dir(&self, x: u32, y: u32) -> Vec3 {
         let sx = (2.0 * (x as f32 + 0.5) / self.width as f32 - 1.0) * self.tan_half * self.aspect;
@@ -287,9 +315,16 @@ impl Protocol {
 
     /// The secondary ray of pixel `i` for `workload`, from its primary hit.
     #[inline]
-    fn secondary_ray(&self, workload: Workload, x: u32, y: u32, t: f32, prim: u32) -> Ray {
+    fn secondary_ray(
+        &self,
+        workload: Workload,
+        x: u32,
+        y: u32,
+        dir: Vec3,
+        t: f32,
+        prim: u32,
+    ) -> Ray {
         let cam = &self.camera;
-        let dir = cam.dir(x, y);
         let p = cam.eye + dir * t;
         let mut n = self.normals[prim as usize];
         if n.dot(dir) > 0.0 {
@@ -332,6 +367,7 @@ impl Protocol {
                 let y0 = band as u32 * BAND;
                 let mut pixels = Vec::with_capacity(64);
                 let mut rays = Vec::with_capacity(64);
+                let mut camera = Vec::with_capacity(64);
                 let mut slots = Vec::with_capacity(64);
                 let mut hits = [None; 64];
                 let mut occ = [false; 64];
@@ -341,18 +377,25 @@ impl Protocol {
                         tile_pixels(tx, ty, w, h, &mut pixels);
                         rays.clear();
                         slots.clear();
-                        for &(x, y) in &pixels {
+                        // Camera rays of the whole tile: the primary workload traces them,
+                        // the secondary ones start from their hits.
+                        camera.clear();
+                        self.camera.rays_into(&pixels, &mut camera);
+                        if workload == Workload::Primary {
+                            rays.extend_from_slice(&camera);
+                        }
+                        for (k, &(x, y)) in pixels.iter().enumerate() {
                             let local = ((y - y0) * w + x) as usize;
                             match (workload, primary) {
-                                (Workload::Primary, _) => {
-                                    rays.push(Ray::new(self.camera.eye, self.camera.dir(x, y)));
-                                    slots.push(local);
-                                }
+                                (Workload::Primary, _) => slots.push(local),
                                 (_, Some(p)) => {
                                     let i = (y * w + x) as usize;
                                     if p.prim[i] != u32::MAX {
+                                        let dir = camera[k].dir;
                                         rays.push(
-                                            self.secondary_ray(workload, x, y, p.t[i], p.prim[i]),
+                                            self.secondary_ray(
+                                                workload, x, y, dir, p.t[i], p.prim[i],
+                                            ),
                                         );
                                         slots.push(local);
                                     } else {
@@ -477,6 +520,24 @@ pub fn median(v: &[f64]) -> f64 {
 }
 
 pub use crate::simd::instruction_set;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simd_camera_rays_are_bit_identical_to_scalar_ones() {
+        let positions = [Vec3::new(-1.0, 0.2, -0.5), Vec3::new(0.7, 1.9, 0.3)];
+        let cam = BenchCamera::new(&Framing::new(&positions), 1024, 768);
+        let pixels: Vec<(u32, u32)> = (0..37).map(|i| (i * 27 % 1024, i * 19 % 768)).collect();
+        let mut rays = Vec::new();
+        cam.rays_into(&pixels, &mut rays);
+        for (r, &(x, y)) in rays.iter().zip(&pixels) {
+            assert_eq!(r.dir, cam.dir(x, y), "pixel ({x}, {y})");
+            assert_eq!(r.origin, cam.eye);
+        }
+    }
+}
 
 /// Runs every workload for one mode at one thread count (inside the caller's pool).
 pub fn run_mode(
