@@ -445,8 +445,6 @@ mod tests {
                 if kind != SamplerKind::Random {
                     // grid, jittered and Halton put one value in each of n strata
                     let mut seen = vec![0; n as usize];
-                    let mut sorted = t.clone();
-                    sorted.sort_by(f32::total_cmp);
                     for x in &t {
                         seen[(x * n as f32) as usize] += 1;
                     }

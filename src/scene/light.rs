@@ -184,9 +184,12 @@ impl Light {
                 radius,
                 radiance,
             } => {
-                if !(center.is_finite() && normal.is_finite() && normal.length_squared() > 0.0)
-                    || !(radius.is_finite() && radius > 0.0)
-                    || !colour_ok(radiance)
+                if !(center.is_finite()
+                    && normal.is_finite()
+                    && normal.length_squared() > 0.0
+                    && radius.is_finite()
+                    && radius > 0.0
+                    && colour_ok(radiance))
                 {
                     return Err("disk light needs a finite centre, a non-zero normal, a radius > 0 and a finite, non-negative radiance".into());
                 }
@@ -196,9 +199,10 @@ impl Light {
                 radius,
                 radiance,
             } => {
-                if !center.is_finite()
-                    || !(radius.is_finite() && radius > 0.0)
-                    || !colour_ok(radiance)
+                if !(center.is_finite()
+                    && radius.is_finite()
+                    && radius > 0.0
+                    && colour_ok(radiance))
                 {
                     return Err("sphere light needs a finite centre, a radius > 0 and a finite, non-negative radiance".into());
                 }

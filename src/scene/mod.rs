@@ -613,7 +613,7 @@ impl SceneBuilder {
                 m.spheres.radius[i],
                 m.sphere_velocity[i],
             );
-            if !c.is_finite() || !v.is_finite() || !(r.is_finite() && r > 0.0) {
+            if !(c.is_finite() && v.is_finite() && r.is_finite() && r > 0.0) {
                 return bad(format!(
                     "moving sphere {i}: centre {c}, radius {r}, velocity {v}: need finite values and radius > 0"
                 ));
