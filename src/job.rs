@@ -4,9 +4,9 @@
 
 use crate::accel::{AccelInfo, AccelKind, SceneAccel};
 use crate::error::{Error, Result};
-use crate::integrator::{self, RenderOptions};
-use crate::scene::{self, Scene};
-use crate::stats::{PhaseTimes, RayCounts, ms_since};
+use crate::integrator::{self, FilterKind, RenderOptions, SamplerKind};
+use crate::scene::{self, SampleCounts, Scene};
+use crate::stats::{EffectSamplesDrawn, PhaseTimes, RayCounts, ms_since};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -19,6 +19,13 @@ pub struct Overrides {
     pub height: Option<u32>,
     pub spp: Option<u32>,
     pub max_depth: Option<u32>,
+    /// Per-effect sample counts (`spp` is the eye count).
+    pub shadow_samples: Option<u32>,
+    pub glossy_samples: Option<u32>,
+    pub lens_samples: Option<u32>,
+    pub time_samples: Option<u32>,
+    pub sampler: Option<SamplerKind>,
+    pub filter: Option<FilterKind>,
 }
 
 /// One render from a scene file to an image file.
@@ -41,6 +48,10 @@ pub struct RenderReport {
     pub width: u32,
     pub height: u32,
     pub spp: u32,
+    /// Per-effect sample counts requested (an effect the scene lacks ignores its count).
+    pub samples: SampleCounts,
+    pub sampler: SamplerKind,
+    pub filter: FilterKind,
     pub threads: usize,
     pub seed: u64,
     pub primitives: PrimitiveCounts,
@@ -52,6 +63,8 @@ pub struct RenderReport {
     pub mrays_per_s: f64,
     /// Samples whose radiance was NaN or infinite (written as black).
     pub nonfinite_samples: u64,
+    /// Lens, time, light and glossy samples drawn (zero for effects the scene lacks).
+    pub samples_drawn: EffectSamplesDrawn,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -112,6 +125,9 @@ impl RenderJob {
             width: opts.width,
             height: opts.height,
             spp: opts.spp,
+            samples: opts.samples,
+            sampler: opts.sampler,
+            filter: opts.filter,
             threads,
             seed: self.seed,
             primitives: PrimitiveCounts {
@@ -129,6 +145,7 @@ impl RenderJob {
             time_ms: time,
             mrays_per_s: total as f64 / (time.render.max(1e-6) * 1e3),
             nonfinite_samples: out.nonfinite_samples,
+            samples_drawn: out.samples_drawn,
         })
     }
 
@@ -140,6 +157,12 @@ impl RenderJob {
         o.height = ov.height.unwrap_or(o.height);
         o.spp = ov.spp.unwrap_or(o.spp);
         o.max_depth = ov.max_depth.unwrap_or(o.max_depth);
+        o.samples.shadow = ov.shadow_samples.unwrap_or(o.samples.shadow);
+        o.samples.glossy = ov.glossy_samples.unwrap_or(o.samples.glossy);
+        o.samples.lens = ov.lens_samples.unwrap_or(o.samples.lens);
+        o.samples.time = ov.time_samples.unwrap_or(o.samples.time);
+        o.sampler = ov.sampler.unwrap_or(o.sampler);
+        o.filter = ov.filter.unwrap_or(o.filter);
         o.seed = self.seed;
         o.validate()?;
         Ok(o)
@@ -186,8 +209,24 @@ impl RenderReport {
             self.output, self.width, self.height, self.spp, self.seed
         );
         s += &format!(
-            "rays     camera {}, shadow {}, reflection {}, refraction {}; total {}\n",
-            r.camera, r.shadow, r.reflection, r.refraction, self.rays.total
+            "samples  eye {} x shadow {} x glossy {} x lens {} x time {}, {} sampler, {} filter\n",
+            self.spp,
+            self.samples.shadow,
+            self.samples.glossy,
+            self.samples.lens,
+            self.samples.time,
+            self.sampler,
+            self.filter
+        );
+        s += &format!(
+            "rays     camera {}, shadow {}, reflection {}, refraction {}, glossy {}, translucency {}; total {}\n",
+            r.camera,
+            r.shadow,
+            r.reflection,
+            r.refraction,
+            r.glossy,
+            r.translucency,
+            self.rays.total
         );
         s += &format!(
             "time     load {:.1} ms, build {:.1} ms, render {:.1} ms, write {:.1} ms; total {:.1} ms\n",

@@ -31,6 +31,40 @@ enum Command {
     /// Time the ray-throughput protocol of shared/BENCHMARK.md (Mrays/s for primary,
     /// shadow and diffuse rays) for each tracing mode, at 1 thread and all cores.
     Bench(BenchArgs),
+    /// Error against run time (Cook et al. 1984): a high-sample reference, then each
+    /// sample pattern and eye/shadow split at a series of budgets; prints the table and
+    /// the fitted log-log slopes, writes a CSV and an SVG plot.
+    Converge(ConvergeArgs),
+}
+
+#[derive(clap::Args)]
+struct ConvergeArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    #[arg(long, default_value_t = 64)]
+    width: u32,
+    #[arg(long, default_value_t = 64)]
+    height: u32,
+    /// Reference eye samples (jittered).
+    #[arg(long, default_value_t = 1024)]
+    reference_eye: u32,
+    /// Reference shadow samples per area light.
+    #[arg(long, default_value_t = 16)]
+    reference_shadow: u32,
+    /// Sample budgets (eye x shadow per pixel), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [1u32, 4, 16, 64])]
+    budgets: Vec<u32>,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads; 0 = all cores.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// CSV of every render.
+    #[arg(long, default_value = "convergence.csv")]
+    csv: PathBuf,
+    /// SVG plot, log-log RMSE against seconds.
+    #[arg(long, default_value = "convergence.svg")]
+    plot: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -75,6 +109,8 @@ struct RenderArgs {
     /// Maximum recursion depth for reflection and refraction (default: the scene's).
     #[arg(long)]
     max_depth: Option<u32>,
+    #[command(flatten)]
+    sampling: SamplingArgs,
     /// Worker threads; 0 = all cores.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -92,6 +128,38 @@ struct RenderArgs {
     quiet: bool,
 }
 
+/// Distribution ray tracing: sample patterns, filter and per-effect sample counts
+/// (`--spp` is the eye count).
+#[derive(clap::Args)]
+struct SamplingArgs {
+    /// Sample pattern for pixel, lens, time, light and glossy sets.
+    #[arg(long, value_parser = parse_sampler)]
+    sampler: Option<packet_render::integrator::SamplerKind>,
+    /// Pixel reconstruction filter.
+    #[arg(long, value_parser = parse_filter)]
+    filter: Option<packet_render::integrator::FilterKind>,
+    /// Points per area light per shading point (default: the scene's).
+    #[arg(long)]
+    shadow_samples: Option<u32>,
+    /// Rays per glossy/translucent lobe at first hits (default: the scene's).
+    #[arg(long)]
+    glossy_samples: Option<u32>,
+    /// Lens points per eye sample (default: the scene's).
+    #[arg(long)]
+    lens_samples: Option<u32>,
+    /// Shutter times per lens sample (default: the scene's).
+    #[arg(long)]
+    time_samples: Option<u32>,
+}
+
+fn parse_sampler(s: &str) -> Result<packet_render::integrator::SamplerKind, String> {
+    s.parse().map_err(|e: packet_render::Error| e.to_string())
+}
+
+fn parse_filter(s: &str) -> Result<packet_render::integrator::FilterKind, String> {
+    s.parse().map_err(|e: packet_render::Error| e.to_string())
+}
+
 fn parse_accel(s: &str) -> Result<AccelKind, String> {
     s.parse().map_err(|e: packet_render::Error| e.to_string())
 }
@@ -101,6 +169,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),
+        Command::Converge(args) => converge(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -120,6 +189,12 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             height: args.height,
             spp: args.spp,
             max_depth: args.max_depth,
+            shadow_samples: args.sampling.shadow_samples,
+            glossy_samples: args.sampling.glossy_samples,
+            lens_samples: args.sampling.lens_samples,
+            time_samples: args.sampling.time_samples,
+            sampler: args.sampling.sampler,
+            filter: args.sampling.filter,
         },
         accel: args.accel,
         seed: args.seed,
@@ -176,6 +251,44 @@ fn bench(args: BenchArgs) -> packet_render::Result<()> {
             println!("{}", bench::table_row(row));
         }
     })?;
+    Ok(())
+}
+
+fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
+    use packet_render::bench::converge;
+    let scene = packet_render::scene::load::load_scene(&args.scene)?;
+    let opts = converge::ConvergeOptions {
+        width: args.width,
+        height: args.height,
+        seed: args.seed,
+        reference_eye: args.reference_eye,
+        reference_shadow: args.reference_shadow,
+        budgets: args.budgets,
+        ..Default::default()
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads)
+        .build()
+        .map_err(|e| packet_render::Error::parameter("threads", e.to_string()))?;
+    let report = pool.install(|| {
+        converge::run(&scene, &opts, |r| {
+            eprintln!(
+                "{:>18} budget {:>4}: {:.4} s, RMSE {:.5}",
+                r.strategy, r.budget, r.seconds, r.rmse
+            )
+        })
+    })?;
+    println!(
+        "reference: {} eye x {} shadow, {:.2} s\n",
+        opts.reference_eye, opts.reference_shadow, report.reference_seconds
+    );
+    println!("{}", report.table());
+    println!("{}", report.slope_table());
+    report.write_csv(&args.csv)?;
+    report.write_plot(
+        &args.plot,
+        &format!("{}: RMSE against render time", args.scene.display()),
+    )?;
     Ok(())
 }
 

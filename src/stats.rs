@@ -11,11 +11,45 @@ pub struct RayCounts {
     pub shadow: u64,
     pub reflection: u64,
     pub refraction: u64,
+    /// Rays sampled in a glossy reflection lobe.
+    pub glossy: u64,
+    /// Refracted rays sampled in a translucency lobe.
+    pub translucency: u64,
 }
 
 impl RayCounts {
     pub fn total(&self) -> u64 {
-        self.camera + self.shadow + self.reflection + self.refraction
+        self.camera
+            + self.shadow
+            + self.reflection
+            + self.refraction
+            + self.glossy
+            + self.translucency
+    }
+}
+
+/// Samples drawn for the distributed effects: lens points, shutter times, points on
+/// area lights and glossy or translucent directions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct EffectSamplesDrawn {
+    pub lens: u64,
+    pub time: u64,
+    pub light: u64,
+    pub glossy: u64,
+}
+
+impl EffectSamplesDrawn {
+    pub fn total(&self) -> u64 {
+        self.lens + self.time + self.light + self.glossy
+    }
+}
+
+impl AddAssign for EffectSamplesDrawn {
+    fn add_assign(&mut self, o: Self) {
+        self.lens += o.lens;
+        self.time += o.time;
+        self.light += o.light;
+        self.glossy += o.glossy;
     }
 }
 
@@ -25,6 +59,8 @@ impl AddAssign for RayCounts {
         self.shadow += o.shadow;
         self.reflection += o.reflection;
         self.refraction += o.refraction;
+        self.glossy += o.glossy;
+        self.translucency += o.translucency;
     }
 }
 

@@ -8,11 +8,13 @@
 mod bruteforce;
 mod bvh2;
 mod bvh4;
+mod moving;
 mod primitives;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvh4::{Bvh4, Bvh4Node, PACKET_MIN_ACTIVE};
+pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};
 pub use primitives::{Primitives, Spheres, Triangles};
 
 use crate::error::{Error, Result};
@@ -124,6 +126,10 @@ impl std::fmt::Display for AccelKind {
 pub enum PrimRef {
     Triangle(u32),
     Sphere(u32),
+    /// Index into `Scene::motion.mesh`.
+    MovingTriangle(u32),
+    /// Index into `Scene::motion.spheres`.
+    MovingSphere(u32),
 }
 
 /// A closest hit in the whole scene.
@@ -140,6 +146,8 @@ pub struct SceneAccel {
     pub kind: AccelKind,
     pub triangles: Option<Box<dyn Accel>>,
     pub spheres: Option<Box<dyn Accel>>,
+    /// Moving geometry (motion blur); `None` for a scene without it.
+    pub moving: Option<MovingAccel>,
 }
 
 impl SceneAccel {
@@ -148,10 +156,12 @@ impl SceneAccel {
             (!scene.mesh.is_empty()).then(|| kind.build(Triangles::from_mesh(&scene.mesh)));
         let spheres =
             (!scene.spheres.is_empty()).then(|| kind.build(Spheres::from_set(&scene.spheres)));
+        let moving = MovingAccel::build(&scene.motion, scene.camera_effects.shutter, kind);
         SceneAccel {
             kind,
             triangles,
             spheres,
+            moving,
         }
     }
 
@@ -180,12 +190,22 @@ impl SceneAccel {
                 });
             }
         }
+        if let Some(m) = &self.moving {
+            best = closer(
+                best,
+                ray,
+                |r| m.closest_triangle(r),
+                PrimRef::MovingTriangle,
+            );
+            best = closer(best, ray, |r| m.closest_sphere(r), PrimRef::MovingSphere);
+        }
         best
     }
 
     pub fn any_hit(&self, ray: &Ray) -> bool {
         self.triangles.as_ref().is_some_and(|a| a.any_hit(ray))
             || self.spheres.as_ref().is_some_and(|a| a.any_hit(ray))
+            || self.moving.as_ref().is_some_and(|m| m.any_hit(ray))
     }
 
     /// Build statistics of each structure present.
@@ -194,6 +214,29 @@ impl SceneAccel {
             .iter()
             .chain(self.spheres.iter())
             .map(|a| a.info())
+            .chain(self.moving.iter().flat_map(|m| m.info()))
             .collect()
+    }
+}
+
+/// `best`, or the hit `query` finds before it.
+fn closer(
+    best: Option<SceneHit>,
+    ray: &Ray,
+    query: impl Fn(&Ray) -> Option<Hit>,
+    prim: fn(u32) -> PrimRef,
+) -> Option<SceneHit> {
+    let mut r = *ray;
+    if let Some(b) = &best {
+        r.tmax = b.t;
+    }
+    match query(&r) {
+        Some(h) => Some(SceneHit {
+            t: h.t,
+            prim: prim(h.prim),
+            u: h.u,
+            v: h.v,
+        }),
+        None => best,
     }
 }

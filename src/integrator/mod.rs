@@ -1,12 +1,14 @@
 //! Integrators: how radiance is estimated per pixel. `whitted` is the recursive scalar
 //! reference renderer.
 
+pub mod sampling;
 pub mod whitted;
 
 use crate::error::{Error, Result};
 use crate::film::Film;
-use crate::scene::Scene;
-use crate::stats::RayCounts;
+use crate::scene::{SampleCounts, Scene};
+use crate::stats::{EffectSamplesDrawn, RayCounts};
+pub use sampling::{FilterKind, SamplerKind};
 use std::sync::Arc;
 
 /// Largest image side accepted (a 64k x 64k RGB f32 film is already 48 GiB).
@@ -15,6 +17,26 @@ pub const MAX_IMAGE_SIDE: u32 = 65_536;
 pub const MAX_SPP: u32 = 1 << 16;
 /// Largest recursion depth accepted.
 pub const MAX_DEPTH: u32 = 64;
+/// Largest per-effect sample count (shadow, glossy, lens, time) accepted.
+pub const MAX_EFFECT_SAMPLES: u32 = 1024;
+
+/// Rejects per-effect sample counts outside `1..=MAX_EFFECT_SAMPLES`.
+pub fn validate_sample_counts(c: &SampleCounts) -> Result<()> {
+    for (name, n) in [
+        ("shadow", c.shadow),
+        ("glossy", c.glossy),
+        ("lens", c.lens),
+        ("time", c.time),
+    ] {
+        if n == 0 || n > MAX_EFFECT_SAMPLES {
+            return Err(Error::parameter(
+                "sample count",
+                format!("{name} = {n}: must be between 1 and {MAX_EFFECT_SAMPLES}"),
+            ));
+        }
+    }
+    Ok(())
+}
 
 /// Rejects absurd render parameters with a message saying what is allowed.
 pub fn validate_dimensions(width: u32, height: u32, spp: u32, max_depth: u32) -> Result<()> {
@@ -58,6 +80,12 @@ pub struct RenderOptions {
     pub max_depth: u32,
     pub min_contribution: f32,
     pub seed: u64,
+    /// Per-effect sample counts (the eye count is `spp`).
+    pub samples: SampleCounts,
+    /// Pattern of every sample set (pixel, lens, time, light, glossy).
+    pub sampler: SamplerKind,
+    /// Pixel reconstruction filter.
+    pub filter: FilterKind,
     /// Called as tiles finish; `None` for silence.
     pub progress: Option<ProgressFn>,
 }
@@ -73,6 +101,9 @@ impl std::fmt::Debug for RenderOptions {
             .field("max_depth", &self.max_depth)
             .field("min_contribution", &self.min_contribution)
             .field("seed", &self.seed)
+            .field("samples", &self.samples)
+            .field("sampler", &self.sampler)
+            .field("filter", &self.filter)
             .field(
                 "progress",
                 &self.progress.as_ref().map(|_| "Fn(done, total)"),
@@ -94,6 +125,9 @@ impl PartialEq for RenderOptions {
             && self.max_depth == o.max_depth
             && self.min_contribution == o.min_contribution
             && self.seed == o.seed
+            && self.samples == o.samples
+            && self.sampler == o.sampler
+            && self.filter == o.filter
             && same_progress
     }
 }
@@ -108,12 +142,16 @@ impl RenderOptions {
             max_depth: s.max_depth,
             min_contribution: s.min_contribution,
             seed: 0,
+            samples: s.samples,
+            sampler: SamplerKind::default(),
+            filter: FilterKind::default(),
             progress: None,
         }
     }
 
     pub fn validate(&self) -> Result<()> {
-        validate_dimensions(self.width, self.height, self.spp, self.max_depth)
+        validate_dimensions(self.width, self.height, self.spp, self.max_depth)?;
+        validate_sample_counts(&self.samples)
     }
 }
 
@@ -126,4 +164,7 @@ pub struct RenderOutput {
     /// Samples whose radiance came out NaN or infinite. Each was written as black, so a
     /// numeric bug shows here instead of poisoning the image (and every later average).
     pub nonfinite_samples: u64,
+    /// Random samples drawn for the distributed effects; all zero for a scene that has
+    /// none of them (pay for what you use).
+    pub samples_drawn: EffectSamplesDrawn,
 }

@@ -1,4 +1,5 @@
-//! Recursive Whitted-style ray tracer (scalar reference).
+//! Recursive Whitted-style ray tracer (scalar reference), extended to distribution ray
+//! tracing.
 //!
 //! Whitted, "An Improved Illumination Model for Shaded Display" (CACM 1980): at each
 //! hit, direct light from point and directional lights through one shadow ray each,
@@ -6,16 +7,28 @@
 //! the reference the wavefront integrator is checked against, so it favours clarity
 //! and exactness over speed, but it still never allocates per ray.
 //!
-//! Determinism: each pixel draws its sub-pixel positions from its own random stream,
-//! seeded from `(seed, pixel index)`, and tiles are reassembled in a fixed order, so an
-//! image is bit-identical whatever the number of threads and whatever order tiles run.
+//! Cook, Porter, Carpenter, "Distributed Ray Tracing" (SIGGRAPH 1984): the same tree
+//! with rays distributed over the quantities it integrates: pixel area (any
+//! [`SamplerKind`](super::SamplerKind) and [`FilterKind`](super::FilterKind)), lens
+//! area (depth of field), shutter time (motion blur), area-light surface (soft
+//! shadows) and the glossy and translucent lobes. Each effect takes its own sample
+//! count ([`SampleCounts`](crate::scene::SampleCounts)); a scene without an effect draws
+//! no sample for it, so it traces exactly the rays of the plain Whitted renderer.
+//!
+//! Determinism: each pixel draws all its samples from its own random stream, seeded
+//! from `(seed, pixel index)`, in a fixed order, and tiles are reassembled in a fixed
+//! order, so an image is bit-identical whatever the number of threads and whatever
+//! order tiles run.
 
-use super::{RenderOptions, RenderOutput};
+use super::sampling::{
+    Dimension, PixelRng, decorrelate, fill_1d, fill_2d, sample_aperture, sample_phong_lobe,
+};
+use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::Film;
 use crate::geometry::{Ray, offset_ray_origin};
-use crate::scene::{Light, Material, Scene};
-use crate::stats::{RayCounts, ms_since};
+use crate::scene::{CameraFrame, LensFrame, Light, Material, Scene};
+use crate::stats::{EffectSamplesDrawn, RayCounts, ms_since};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::f32::consts::FRAC_1_PI;
@@ -27,8 +40,11 @@ use std::time::Instant;
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
     let start = Instant::now();
     let (width, height) = (opts.width, opts.height);
-    let frame = scene.camera.frame(width, height);
-    let camera_ray = move |px: f32, py: f32| frame.ray(px, py);
+    let camera = CameraSampler {
+        frame: scene.camera.frame(width, height),
+        lens: LensFrame::new(&scene.camera, &scene.camera_effects),
+        plan: SamplePlan::new(scene, opts),
+    };
 
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
@@ -44,7 +60,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
                 x1: ((tx + 1) * TILE).min(width),
                 y1: ((ty + 1) * TILE).min(height),
             };
-            let result = render_tile(scene, accel, opts, &camera_ray, tile);
+            let result = render_tile(scene, accel, opts, &camera, tile);
             if let Some(progress) = &opts.progress {
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             }
@@ -54,6 +70,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
 
     let mut film = Film::new(width, height);
     let mut rays = RayCounts::default();
+    let mut samples_drawn = EffectSamplesDrawn::default();
     let mut nonfinite_samples = 0;
     for t in tiles {
         let mut values = t.pixels.into_iter();
@@ -63,6 +80,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
             }
         }
         rays += t.rays;
+        samples_drawn += t.samples_drawn;
         nonfinite_samples += t.nonfinite_samples;
     }
     RenderOutput {
@@ -70,7 +88,54 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
         rays,
         render_ms: ms_since(start),
         nonfinite_samples,
+        samples_drawn,
     }
+}
+
+/// The sample counts a render actually uses: a count for an effect the scene lacks is
+/// 1 and draws nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SamplePlan {
+    pub eye: u32,
+    /// Lens samples per eye sample; 0 when the scene has no depth of field.
+    pub lens: u32,
+    /// Shutter times per lens sample; 0 when nothing moves.
+    pub time: u32,
+    pub shadow: u32,
+    pub glossy: u32,
+    pub sampler: SamplerKind,
+    pub filter: FilterKind,
+}
+
+impl SamplePlan {
+    pub fn new(scene: &Scene, opts: &RenderOptions) -> Self {
+        let f = &scene.features;
+        SamplePlan {
+            eye: opts.spp.max(1),
+            lens: if f.depth_of_field {
+                opts.samples.lens
+            } else {
+                0
+            },
+            time: if f.motion { opts.samples.time } else { 0 },
+            shadow: opts.samples.shadow,
+            glossy: opts.samples.glossy,
+            sampler: opts.sampler,
+            filter: opts.filter,
+        }
+    }
+
+    /// Camera rays per pixel: `eye * lens * time` (absent effects count 1).
+    pub fn camera_rays_per_pixel(&self) -> u32 {
+        self.eye * self.lens.max(1) * self.time.max(1)
+    }
+}
+
+/// Everything that turns sample positions into camera rays.
+struct CameraSampler {
+    frame: CameraFrame,
+    lens: LensFrame,
+    plan: SamplePlan,
 }
 
 /// What the shader needs to know about a hit.
@@ -112,6 +177,25 @@ impl SurfaceInteraction {
                 let radius = scene.spheres.radius[s];
                 let n = (ray.at(hit.t) - center).normalize_or_zero();
                 (center + radius * n, n, n, scene.spheres.material[s])
+            }
+            // Moving primitives are placed at the ray's time; translation leaves
+            // normals unchanged.
+            PrimRef::MovingTriangle(t) => {
+                let t = t as usize;
+                let mesh = &scene.motion.mesh;
+                let [a, b, c] = scene.motion.triangle_corners(t, ray.time);
+                let w = 1.0 - hit.u - hit.v;
+                let p = w * a + hit.u * b + hit.v * c;
+                let ng = mesh.geometric_normal(t);
+                let ns = mesh.shading_normal(t, hit.u, hit.v);
+                (p, ng, ns, mesh.material[t])
+            }
+            PrimRef::MovingSphere(s) => {
+                let s = s as usize;
+                let center = scene.motion.sphere_center(s, ray.time);
+                let radius = scene.motion.spheres.radius[s];
+                let n = (ray.at(hit.t) - center).normalize_or_zero();
+                (center + radius * n, n, n, scene.motion.spheres.material[s])
             }
         };
         // A degenerate triangle or a hit at a sphere's centre has no normal; facing the
@@ -200,6 +284,11 @@ const TILE: u32 = 16;
 /// Relative, like the error of `t` itself: no scene-scale epsilon.
 const SHADOW_TMAX_SCALE: f32 = 1.0 - 16.0 * f32::EPSILON;
 
+/// Shadow rays to a point on an area light stop this fraction short of it: the light's
+/// own emissive geometry lies there (a disk light's 64-gon even slightly off the true
+/// disk), and must not shadow its own samples.
+const AREA_SHADOW_TMAX_SCALE: f32 = 1.0 - 1e-4;
+
 #[derive(Clone, Copy, Debug)]
 struct Tile {
     x0: u32,
@@ -213,6 +302,7 @@ struct TileResult {
     /// Row-major within the tile.
     pixels: Vec<Vec3>,
     rays: RayCounts,
+    samples_drawn: EffectSamplesDrawn,
     nonfinite_samples: u64,
 }
 
@@ -220,54 +310,136 @@ fn render_tile(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
-    camera_ray: &impl Fn(f32, f32) -> Ray,
+    camera: &CameraSampler,
     tile: Tile,
 ) -> TileResult {
-    let spp = opts.spp.max(1);
+    let plan = camera.plan;
     let mut tracer = Tracer {
         scene,
         accel,
         max_depth: opts.max_depth,
         min_contribution: opts.min_contribution,
+        plan,
+        rng: PixelRng::new(opts.seed, 0),
         rays: RayCounts::default(),
+        drawn: EffectSamplesDrawn::default(),
+        light_points: Vec::new(),
+        lobe_points: Vec::new(),
     };
-    let mut sampler = PixelSampler::new(spp);
+    let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
+    let mut pixel_pos = Vec::with_capacity(plan.eye as usize);
+    let mut lens_pos = Vec::new();
+    let mut times = Vec::new();
     let mut pixels = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
     let mut nonfinite_samples = 0;
+    // Box: samples inside the pixel; otherwise over the filter's footprint.
+    let footprint = 2.0 * plan.filter.radius();
     for y in tile.y0..tile.y1 {
         for x in tile.x0..tile.x1 {
             let index = y as u64 * opts.width as u64 + x as u64;
-            let mut rng = PixelRng::new(opts.seed, index);
-            let mut sum = Vec3::ZERO;
-            for &(sx, sy) in sampler.positions(&mut rng) {
-                let ray = camera_ray(x as f32 + sx, y as f32 + sy);
-                tracer.rays.camera += 1;
-                let radiance = tracer.radiance(&ray, 0, Vec3::ONE);
-                if radiance.is_finite() {
-                    sum += radiance;
-                } else {
-                    nonfinite_samples += 1;
-                }
+            let rng = &mut tracer.rng;
+            *rng = PixelRng::new(opts.seed, index);
+            // Draw order is fixed: pixel positions, lens points, shutter times, then
+            // whatever the paths draw. A scene with no lens and no motion draws the
+            // pixel positions only, exactly as the plain Whitted renderer did.
+            fill_2d(
+                plan.sampler,
+                plan.eye,
+                Dimension::Pixel,
+                true,
+                rng,
+                &mut pixel_pos,
+            );
+            if plan.lens > 0 {
+                let n = plan.eye * lens_n;
+                fill_2d(plan.sampler, n, Dimension::Lens, false, rng, &mut lens_pos);
+                decorrelate(plan.sampler, &mut lens_pos, rng);
+                tracer.drawn.lens += n as u64;
             }
-            // Box filter: the mean of the samples inside the pixel.
-            pixels.push(sum / spp as f32);
+            if plan.time > 0 {
+                let n = plan.eye * lens_n * time_n;
+                fill_1d(plan.sampler, n, Dimension::Time, rng, &mut times);
+                decorrelate(plan.sampler, &mut times, rng);
+                tracer.drawn.time += n as u64;
+            }
+            let mut sum = Vec3::ZERO;
+            let mut weight_sum = 0.0f32;
+            let mut plain_sum = Vec3::ZERO;
+            for (e, &(sx, sy)) in pixel_pos.iter().enumerate() {
+                let (ox, oy) = if plan.filter == FilterKind::Box {
+                    (sx, sy)
+                } else {
+                    (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
+                };
+                let pinhole = camera.frame.ray(x as f32 + ox, y as f32 + oy);
+                let mut radiance_sum = Vec3::ZERO;
+                for l in 0..lens_n {
+                    let lens_index = e * lens_n as usize + l as usize;
+                    let lens_point = (plan.lens > 0).then(|| {
+                        let (u, v) = lens_pos[lens_index];
+                        sample_aperture(u, v, camera.lens.blades, camera.lens.rotation)
+                    });
+                    for t in 0..time_n {
+                        let time = if plan.time > 0 {
+                            camera
+                                .lens
+                                .time(times[lens_index * time_n as usize + t as usize])
+                        } else {
+                            camera.lens.shutter[0]
+                        };
+                        let ray = camera.lens.ray(&camera.frame, pinhole, lens_point, time);
+                        tracer.rays.camera += 1;
+                        let radiance = tracer.radiance(&ray, 0, Vec3::ONE);
+                        if radiance.is_finite() {
+                            radiance_sum += radiance;
+                        } else {
+                            nonfinite_samples += 1;
+                        }
+                    }
+                }
+                let radiance = if lens_n * time_n == 1 {
+                    radiance_sum
+                } else {
+                    radiance_sum / (lens_n * time_n) as f32
+                };
+                let w = plan.filter.weight(ox - 0.5, oy - 0.5);
+                sum += w * radiance;
+                weight_sum += w;
+                plain_sum += radiance;
+            }
+            // Box filter: the mean of the samples inside the pixel. Weighted filters
+            // divide by the weights drawn (a ratio estimator, consistent); should every
+            // sample land where the filter is zero, the plain mean stands in.
+            pixels.push(if weight_sum > 0.0 {
+                sum / weight_sum
+            } else {
+                plain_sum / plan.eye as f32
+            });
         }
     }
     TileResult {
         tile,
         pixels,
         rays: tracer.rays,
+        samples_drawn: tracer.drawn,
         nonfinite_samples,
     }
 }
 
-/// The recursive part, with the counters of the tile it works for.
+/// The recursive part, with the counters of the tile it works for and the random
+/// stream of the pixel it works on.
 struct Tracer<'a> {
     scene: &'a Scene,
     accel: &'a SceneAccel,
     max_depth: u32,
     min_contribution: f32,
+    plan: SamplePlan,
+    rng: PixelRng,
     rays: RayCounts,
+    drawn: EffectSamplesDrawn,
+    /// Scratch sets, reused so that sampling never allocates per ray.
+    light_points: Vec<(f32, f32)>,
+    lobe_points: Vec<(f32, f32)>,
 }
 
 impl Tracer<'_> {
@@ -278,17 +450,25 @@ impl Tracer<'_> {
             None => self.scene.background,
             Some(hit) => {
                 let si = SurfaceInteraction::new(self.scene, ray, &hit);
-                self.shade(ray.dir.normalize(), &si, depth, throughput)
+                self.shade(ray.dir.normalize(), ray.time, &si, depth, throughput)
             }
         }
     }
 
-    fn shade(&mut self, d: Vec3, si: &SurfaceInteraction, depth: u32, throughput: Vec3) -> Vec3 {
-        let m = &self.scene.materials[si.material as usize];
+    fn shade(
+        &mut self,
+        d: Vec3,
+        time: f32,
+        si: &SurfaceInteraction,
+        depth: u32,
+        throughput: Vec3,
+    ) -> Vec3 {
+        let scene = self.scene;
+        let m = &scene.materials[si.material as usize];
         let mut l = m.emission;
         if m.diffuse != Vec3::ZERO || m.checker.is_some() || m.specular != Vec3::ZERO {
             let albedo = m.albedo_at(si.p);
-            l += self.scene.ambient * albedo + self.direct(-d, si, m, albedo);
+            l += scene.ambient * albedo + self.direct(-d, time, si, m, albedo);
         }
         if depth >= self.max_depth {
             return l;
@@ -297,21 +477,47 @@ impl Tracer<'_> {
             let dir = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
                 reflect(d, si.n_geometric)
             });
-            l += m.mirror * self.reflected(si, dir, depth, throughput * m.mirror);
+            l += m.mirror * self.reflected(si, dir, time, depth, throughput * m.mirror);
+        }
+        if m.is_glossy() {
+            l += m.glossy * self.glossy(d, time, si, m, depth, throughput * m.glossy);
         }
         if m.is_transmissive() {
-            l += self.glass(d, si, m, depth, throughput);
+            l += self.glass(d, time, si, m, depth, throughput);
         }
         l
     }
 
-    /// Point and directional lights, one shadow ray each: Lambert diffuse
-    /// (`albedo / π · E cosθ`, so that `ambient * albedo` and direct light share one
-    /// scale) plus a Blinn-Phong highlight `ks (n·h)^shininess · E`.
-    fn direct(&mut self, wo: Vec3, si: &SurfaceInteraction, m: &Material, albedo: Vec3) -> Vec3 {
+    /// Direct light: point and directional lights with one shadow ray each, area lights
+    /// with `shadow` stratified points each. The reflectance is Lambert diffuse
+    /// (`albedo / π · cosθ`, so that `ambient * albedo` and direct light share one
+    /// scale) plus a Blinn-Phong highlight `ks (n·h)^shininess`.
+    fn direct(
+        &mut self,
+        wo: Vec3,
+        time: f32,
+        si: &SurfaceInteraction,
+        m: &Material,
+        albedo: Vec3,
+    ) -> Vec3 {
         let origin = offset_ray_origin(si.p, si.n_geometric);
+        // A light below the surface (or below the shading normal) contributes nothing:
+        // no shadow ray for it.
+        let reflectance = |wi: Vec3| {
+            let cos_s = wi.dot(si.n_shading);
+            if !(wi.dot(si.n_geometric) > 0.0 && cos_s > 0.0) {
+                return None;
+            }
+            let mut f = albedo * (FRAC_1_PI * cos_s);
+            if m.specular != Vec3::ZERO {
+                let h = (wi + wo).normalize_or_zero();
+                f += m.specular * h.dot(si.n_shading).max(0.0).powf(m.shininess);
+            }
+            Some(f)
+        };
         let mut l = Vec3::ZERO;
-        for light in &self.scene.lights {
+        let scene = self.scene;
+        for light in &scene.lights {
             let (wi, tmax, irradiance) = match *light {
                 Light::Point {
                     position,
@@ -326,31 +532,126 @@ impl Tracer<'_> {
                     direction,
                     irradiance,
                 } => (-direction.normalize(), f32::INFINITY, irradiance),
+                _ => {
+                    l += self.area_light(light, origin, time, &reflectance);
+                    continue;
+                }
             };
-            // A light below the surface (or below the shading normal) contributes
-            // nothing: no shadow ray for it.
-            let cos_s = wi.dot(si.n_shading);
-            if !(wi.dot(si.n_geometric) > 0.0 && cos_s > 0.0) {
+            let Some(f) = reflectance(wi) else {
                 continue;
-            }
+            };
             self.rays.shadow += 1;
-            if self.accel.any_hit(&Ray::segment(origin, wi, 0.0, tmax)) {
+            if self.occluded(origin, wi, tmax, time) {
                 continue;
-            }
-            let mut f = albedo * (FRAC_1_PI * cos_s);
-            if m.specular != Vec3::ZERO {
-                let h = (wi + wo).normalize_or_zero();
-                f += m.specular * h.dot(si.n_shading).max(0.0).powf(m.shininess);
             }
             l += irradiance * f;
         }
         l
     }
 
-    /// Fresnel-weighted reflection plus transmission.
+    /// The mean over `shadow` stratified points of the light of `f · L dω / pdf`.
+    fn area_light(
+        &mut self,
+        light: &Light,
+        origin: Vec3,
+        time: f32,
+        reflectance: &impl Fn(Vec3) -> Option<Vec3>,
+    ) -> Vec3 {
+        let n = self.plan.shadow;
+        let mut points = std::mem::take(&mut self.light_points);
+        fill_2d(
+            self.plan.sampler,
+            n,
+            Dimension::Hit,
+            false,
+            &mut self.rng,
+            &mut points,
+        );
+        self.drawn.light += n as u64;
+        let mut sum = Vec3::ZERO;
+        for &(u, v) in &points {
+            let Some(s) = light.sample(origin, u, v) else {
+                continue;
+            };
+            let Some(f) = reflectance(s.wi) else {
+                continue;
+            };
+            self.rays.shadow += 1;
+            if !self.occluded(origin, s.wi, s.dist * AREA_SHADOW_TMAX_SCALE, time) {
+                sum += s.weight * f;
+            }
+        }
+        self.light_points = points;
+        sum / n as f32
+    }
+
+    fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32, time: f32) -> bool {
+        let mut r = Ray::segment(origin, dir, 0.0, tmax);
+        r.time = time;
+        self.accel.any_hit(&r)
+    }
+
+    /// Glossy reflection: the mean radiance over directions drawn from the Phong lobe
+    /// around the mirror direction. Directions below the surface carry nothing (the
+    /// lobe is clipped by the surface, as a real glossy coat is).
+    fn glossy(
+        &mut self,
+        d: Vec3,
+        time: f32,
+        si: &SurfaceInteraction,
+        m: &Material,
+        depth: u32,
+        throughput: Vec3,
+    ) -> Vec3 {
+        if throughput.max_element() < self.min_contribution {
+            return Vec3::ZERO;
+        }
+        let axis = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
+            reflect(d, si.n_geometric)
+        });
+        let dirs = self.lobe(depth, axis, m.gloss_exponent);
+        let origin = offset_ray_origin(si.p, si.n_geometric);
+        let mut sum = Vec3::ZERO;
+        for &dir in dirs.iter() {
+            if dir.dot(si.n_geometric) <= 0.0 {
+                continue;
+            }
+            self.rays.glossy += 1;
+            let mut r = Ray::new(origin, dir);
+            r.time = time;
+            sum += self.radiance(&r, depth + 1, throughput);
+        }
+        sum / dirs.len() as f32
+    }
+
+    /// Directions of the lobe `cos^exponent` around `axis`: `glossy` stratified ones at
+    /// the first hit of a camera ray, one deeper down (the ray tree stays linear).
+    fn lobe(&mut self, depth: u32, axis: Vec3, exponent: f32) -> LobeDirections {
+        let n = if depth == 0 { self.plan.glossy } else { 1 };
+        let mut points = std::mem::take(&mut self.lobe_points);
+        fill_2d(
+            self.plan.sampler,
+            n,
+            Dimension::Hit,
+            false,
+            &mut self.rng,
+            &mut points,
+        );
+        self.drawn.glossy += n as u64;
+        let dirs = points
+            .iter()
+            .map(|&(u, v)| sample_phong_lobe(axis, exponent, u, v))
+            .collect();
+        self.lobe_points = points;
+        dirs
+    }
+
+    /// Fresnel-weighted reflection plus transmission; a translucent material blurs the
+    /// transmitted ray over the Phong lobe around the refracted direction.
     fn glass(
         &mut self,
         d: Vec3,
+        time: f32,
         si: &SurfaceInteraction,
         m: &Material,
         depth: u32,
@@ -376,16 +677,33 @@ impl Tracer<'_> {
             let dir = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
                 reflect(d, si.n_geometric)
             });
-            l += f * self.reflected(si, dir, depth, throughput * f);
+            l += f * self.reflected(si, dir, time, depth, throughput * f);
         }
         if let Some(t) = scatter.refracted {
             let weight = (1.0 - f) * m.transmission;
             let throughput = throughput * weight;
             if throughput.max_element() >= self.min_contribution && weight != Vec3::ZERO {
-                self.rays.refraction += 1;
                 // Refraction leaves into the far side: offset against the facing normal.
                 let origin = offset_ray_origin(si.p, -si.n_geometric);
-                l += weight * self.radiance(&Ray::new(origin, t), depth + 1, throughput);
+                if m.is_translucent() {
+                    let dirs = self.lobe(depth, t, m.translucency_exponent);
+                    let mut sum = Vec3::ZERO;
+                    for &dir in dirs.iter() {
+                        if dir.dot(si.n_geometric) >= 0.0 {
+                            continue;
+                        }
+                        self.rays.translucency += 1;
+                        let mut r = Ray::new(origin, dir);
+                        r.time = time;
+                        sum += self.radiance(&r, depth + 1, throughput);
+                    }
+                    l += weight * sum / dirs.len() as f32;
+                } else {
+                    self.rays.refraction += 1;
+                    let mut r = Ray::new(origin, t);
+                    r.time = time;
+                    l += weight * self.radiance(&r, depth + 1, throughput);
+                }
             }
         }
         l
@@ -397,6 +715,7 @@ impl Tracer<'_> {
         &mut self,
         si: &SurfaceInteraction,
         dir: Vec3,
+        time: f32,
         depth: u32,
         throughput: Vec3,
     ) -> Vec3 {
@@ -405,7 +724,46 @@ impl Tracer<'_> {
         }
         self.rays.reflection += 1;
         let origin = offset_ray_origin(si.p, si.n_geometric);
-        self.radiance(&Ray::new(origin, dir), depth + 1, throughput)
+        let mut r = Ray::new(origin, dir);
+        r.time = time;
+        self.radiance(&r, depth + 1, throughput)
+    }
+}
+
+/// Lobe directions of one shading point: up to 16 inline, so the common counts never
+/// allocate; more (a large `glossy` count at a first hit) spill to the heap once per
+/// such hit, not per ray.
+enum LobeDirections {
+    Inline([Vec3; 16], usize),
+    Heap(Vec<Vec3>),
+}
+
+impl FromIterator<Vec3> for LobeDirections {
+    fn from_iter<I: IntoIterator<Item = Vec3>>(iter: I) -> Self {
+        let mut buf = [Vec3::ZERO; 16];
+        let mut n = 0;
+        let mut it = iter.into_iter();
+        for d in it.by_ref() {
+            if n == 16 {
+                let mut v = buf.to_vec();
+                v.push(d);
+                v.extend(it);
+                return LobeDirections::Heap(v);
+            }
+            buf[n] = d;
+            n += 1;
+        }
+        LobeDirections::Inline(buf, n)
+    }
+}
+
+impl std::ops::Deref for LobeDirections {
+    type Target = [Vec3];
+    fn deref(&self) -> &[Vec3] {
+        match self {
+            LobeDirections::Inline(b, n) => &b[..*n],
+            LobeDirections::Heap(v) => v,
+        }
     }
 }
 
@@ -418,158 +776,5 @@ fn scatter_dir(dir: Vec3, n_geometric: Vec3, fallback: impl FnOnce() -> Vec3) ->
         dir
     } else {
         fallback()
-    }
-}
-
-/// Sub-pixel sample positions in `[0, 1)²`.
-///
-/// One sample uses the pixel centre. A square count `k²` uses a jittered `k × k` grid
-/// (stratified sampling, Cook 1986); any other count uses N-rooks / Latin hypercube
-/// sampling (Shirley 1991): `n` jittered strata in x paired with a random permutation of
-/// `n` jittered strata in y, which keeps both 1D projections stratified.
-struct PixelSampler {
-    spp: u32,
-    grid: Option<u32>,
-    positions: Vec<(f32, f32)>,
-    permutation: Vec<u32>,
-}
-
-impl PixelSampler {
-    fn new(spp: u32) -> Self {
-        let k = spp.isqrt();
-        PixelSampler {
-            spp,
-            grid: (k * k == spp).then_some(k),
-            positions: Vec::with_capacity(spp as usize),
-            permutation: Vec::new(),
-        }
-    }
-
-    fn positions(&mut self, rng: &mut PixelRng) -> &[(f32, f32)] {
-        self.positions.clear();
-        if self.spp == 1 {
-            self.positions.push((0.5, 0.5));
-        } else if let Some(k) = self.grid {
-            let inv = 1.0 / k as f32;
-            for j in 0..k {
-                for i in 0..k {
-                    let (u, v) = (rng.next_f32(), rng.next_f32());
-                    self.positions
-                        .push(((i as f32 + u) * inv, (j as f32 + v) * inv));
-                }
-            }
-        } else {
-            let n = self.spp;
-            self.permutation.clear();
-            self.permutation.extend(0..n);
-            // Fisher-Yates.
-            for i in (1..n).rev() {
-                let j = rng.below(i + 1);
-                self.permutation.swap(i as usize, j as usize);
-            }
-            let inv = 1.0 / n as f32;
-            for i in 0..n {
-                let (u, v) = (rng.next_f32(), rng.next_f32());
-                let j = self.permutation[i as usize];
-                self.positions
-                    .push(((i as f32 + u) * inv, (j as f32 + v) * inv));
-            }
-        }
-        &self.positions
-    }
-}
-
-/// A per-pixel random stream: SplitMix64 (Steele, Lea, Flood 2014) started from a hash
-/// of `(seed, pixel index)`. Independent of which thread renders the pixel, which is
-/// what makes images reproducible across thread counts.
-struct PixelRng {
-    state: u64,
-}
-
-const GOLDEN_GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
-
-impl PixelRng {
-    fn new(seed: u64, pixel: u64) -> Self {
-        // Hash both so neighbouring pixels and neighbouring seeds start far apart.
-        PixelRng {
-            state: mix64(seed ^ mix64(pixel.wrapping_add(GOLDEN_GAMMA))),
-        }
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
-        mix64(self.state)
-    }
-
-    /// Uniform in `[0, 1)`: the top 24 bits, so every value is exact in f32 and 1.0
-    /// can never come out (it would step into the next stratum or pixel).
-    fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
-    }
-
-    /// Uniform in `[0, n)` by multiply-shift (Lemire 2019); the bias of at most
-    /// `n / 2^32` is irrelevant for shuffling sample strata.
-    fn below(&mut self, n: u32) -> u32 {
-        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
-    }
-}
-
-/// SplitMix64's output function (Stafford's "Mix13" variant).
-fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn stratified_positions_cover_every_stratum() {
-        let mut rng = PixelRng::new(7, 3);
-        for spp in [1u32, 4, 9, 16, 2, 3, 5, 12] {
-            let mut s = PixelSampler::new(spp);
-            let pos = s.positions(&mut rng).to_vec();
-            assert_eq!(pos.len(), spp as usize);
-            assert!(
-                pos.iter()
-                    .all(|&(x, y)| (0.0..1.0).contains(&x) && (0.0..1.0).contains(&y))
-            );
-            if spp == 1 {
-                assert_eq!(pos, vec![(0.5, 0.5)]);
-                continue;
-            }
-            // Both 1D projections hit each of the spp (or k) strata exactly once.
-            let strata = s.grid.map_or(spp, |k| k);
-            for axis in 0..2 {
-                let mut count = vec![0u32; strata as usize];
-                for &(x, y) in &pos {
-                    let c = if axis == 0 { x } else { y };
-                    count[(c * strata as f32) as usize] += 1;
-                }
-                assert!(
-                    count.iter().all(|&c| c == spp / strata),
-                    "spp {spp}: {count:?}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn pixel_streams_depend_on_seed_and_pixel_only() {
-        let draw = |seed, pixel| {
-            let mut r = PixelRng::new(seed, pixel);
-            (0..4).map(|_| r.next_u64()).collect::<Vec<_>>()
-        };
-        assert_eq!(draw(1, 2), draw(1, 2));
-        assert_ne!(draw(1, 2), draw(1, 3));
-        assert_ne!(draw(1, 2), draw(2, 2));
-        let mut r = PixelRng::new(0, 0);
-        for _ in 0..10_000 {
-            let x = r.next_f32();
-            assert!((0.0..1.0).contains(&x));
-            assert!(r.below(3) < 3);
-        }
     }
 }

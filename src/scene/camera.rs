@@ -92,3 +92,134 @@ impl CameraFrame {
         Ray::new(self.eye, dir)
     }
 }
+
+/// What a real camera adds to the pinhole [`Camera`]: a thin lens (depth of field) and
+/// a shutter interval with a moving eye (motion blur). The default is the pinhole with
+/// an instantaneous shutter, which samples neither lens nor time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraEffects {
+    /// Lens radius in world units; 0 is a pinhole.
+    pub aperture: f32,
+    /// Distance along the viewing direction of the plane in focus; `None` focuses at
+    /// the target.
+    pub focus_distance: Option<f32>,
+    /// Corners of a polygonal aperture (bokeh shape); 0 is a round one.
+    pub aperture_blades: u32,
+    /// Rotation of the polygonal aperture, in degrees.
+    pub aperture_rotation_deg: f32,
+    /// Shutter open and close times; motion blur needs `open < close`.
+    pub shutter: [f32; 2],
+    /// Eye position at shutter close: the camera translates (eye and target together)
+    /// from `eye` at open to `eye1` at close. `None` is a fixed camera.
+    pub eye1: Option<Vec3>,
+}
+
+impl Default for CameraEffects {
+    fn default() -> Self {
+        CameraEffects {
+            aperture: 0.0,
+            focus_distance: None,
+            aperture_blades: 0,
+            aperture_rotation_deg: 0.0,
+            shutter: [0.0, 0.0],
+            eye1: None,
+        }
+    }
+}
+
+impl CameraEffects {
+    pub fn has_depth_of_field(&self) -> bool {
+        self.aperture > 0.0
+    }
+
+    pub fn shutter_open(&self) -> bool {
+        self.shutter[0] < self.shutter[1]
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.aperture.is_finite() && self.aperture >= 0.0) {
+            return Err(format!(
+                "aperture must be finite and >= 0, got {}",
+                self.aperture
+            ));
+        }
+        if let Some(f) = self.focus_distance
+            && !(f.is_finite() && f > 0.0)
+        {
+            return Err(format!("focus distance must be finite and > 0, got {f}"));
+        }
+        if self.aperture_blades > 0 && !(3..=64).contains(&self.aperture_blades) {
+            return Err(format!(
+                "aperture blades must be 0 (round) or 3..=64, got {}",
+                self.aperture_blades
+            ));
+        }
+        if !self.aperture_rotation_deg.is_finite() {
+            return Err("aperture rotation must be finite".into());
+        }
+        let [open, close] = self.shutter;
+        if !(open.is_finite() && close.is_finite() && open <= close) {
+            return Err(format!(
+                "shutter must be [open, close] with finite open <= close, got [{open}, {close}]"
+            ));
+        }
+        if self.eye1.is_some_and(|e| !e.is_finite()) {
+            return Err("eye1 must be finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// The lens and shutter of one render, resolved against the camera.
+#[derive(Clone, Copy, Debug)]
+pub struct LensFrame {
+    /// Lens radius (0: pinhole).
+    pub aperture: f32,
+    pub focus_distance: f32,
+    pub blades: u32,
+    pub rotation: f32,
+    pub shutter: [f32; 2],
+    /// Eye displacement over the whole shutter interval.
+    pub eye_motion: Vec3,
+}
+
+impl LensFrame {
+    pub fn new(camera: &Camera, effects: &CameraEffects) -> Self {
+        LensFrame {
+            aperture: effects.aperture,
+            focus_distance: effects
+                .focus_distance
+                .unwrap_or_else(|| (camera.target - camera.eye).length()),
+            blades: effects.aperture_blades,
+            rotation: effects.aperture_rotation_deg.to_radians(),
+            shutter: effects.shutter,
+            eye_motion: effects.eye1.map_or(Vec3::ZERO, |e1| e1 - camera.eye),
+        }
+    }
+
+    /// Shutter time for a uniform number `u` in `[0, 1)`.
+    pub fn time(&self, u: f32) -> f32 {
+        self.shutter[0] + u * (self.shutter[1] - self.shutter[0])
+    }
+
+    /// The thin-lens ray (Cook et al. 1984; Potmesil and Chakravarty 1981) for the
+    /// pinhole ray `ray`, the point `lens` on the unit aperture and shutter time
+    /// `time`: it leaves the lens at `eye + aperture * lens` and passes through the
+    /// point where the pinhole ray meets the plane of focus, so that plane stays sharp
+    /// and a point at depth `z` blurs into a disc of radius
+    /// `aperture * |z - focus| / z` on the plane of focus.
+    pub fn ray(&self, frame: &CameraFrame, ray: Ray, lens: Option<glam::Vec2>, time: f32) -> Ray {
+        let mut r = ray;
+        if let Some(l) = lens {
+            let focus = r.origin + r.dir * (self.focus_distance / r.dir.dot(frame.forward));
+            r.origin += self.aperture * (l.x * frame.right + l.y * frame.up);
+            r.dir = (focus - r.origin).normalize();
+        }
+        if self.eye_motion != Vec3::ZERO && self.shutter[1] > self.shutter[0] {
+            let s = (time - self.shutter[0]) / (self.shutter[1] - self.shutter[0]);
+            r.origin += s * self.eye_motion;
+        }
+        r.time = time;
+        r
+    }
+}

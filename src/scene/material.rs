@@ -8,7 +8,11 @@ use glam::Vec3;
 /// - specular highlight (Blinn-Phong, exponent `shininess`) for direct light;
 /// - `mirror`: perfect specular reflection without Fresnel (a metal);
 /// - `transmission` with `ior`: a dielectric (glass): reflection and refraction weighted
-///   by Schlick's Fresnel, total internal reflection past the critical angle.
+///   by Schlick's Fresnel, total internal reflection past the critical angle;
+/// - `glossy` with `gloss_exponent`: blurred reflection, directions drawn from the Phong
+///   lobe `cos^n` around the mirror direction (distribution ray tracing, Cook 1984);
+/// - `translucency_exponent` > 0 blurs the refracted ray of a dielectric the same way
+///   (0 keeps it sharp).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,
@@ -20,6 +24,9 @@ pub struct Material {
     pub transmission: Vec3,
     pub ior: f32,
     pub emission: Vec3,
+    pub glossy: Vec3,
+    pub gloss_exponent: f32,
+    pub translucency_exponent: f32,
 }
 
 /// A 3D checkerboard: `color_a`/`color_b` alternate in cubes of edge `scale` (solid
@@ -43,6 +50,9 @@ impl Default for Material {
             transmission: Vec3::ZERO,
             ior: 1.5,
             emission: Vec3::ZERO,
+            glossy: Vec3::ZERO,
+            gloss_exponent: 100.0,
+            translucency_exponent: 0.0,
         }
     }
 }
@@ -79,6 +89,15 @@ impl Material {
         self.transmission != Vec3::ZERO
     }
 
+    pub fn is_glossy(&self) -> bool {
+        self.glossy != Vec3::ZERO
+    }
+
+    /// A dielectric whose refracted ray is blurred.
+    pub fn is_translucent(&self) -> bool {
+        self.is_transmissive() && self.translucency_exponent > 0.0
+    }
+
     /// Diffuse albedo at a world-space point (the checkerboard is a solid texture).
     pub fn albedo_at(&self, p: Vec3) -> Vec3 {
         match &self.checker {
@@ -98,6 +117,7 @@ impl Material {
             ("mirror", self.mirror),
             ("transmission", self.transmission),
             ("emission", self.emission),
+            ("glossy", self.glossy),
         ];
         for (name, c) in colours {
             if !c.is_finite() || c.min_element() < 0.0 {
@@ -117,6 +137,14 @@ impl Material {
                 "shininess must be finite and >= 0, got {}",
                 self.shininess
             ));
+        }
+        for (name, x) in [
+            ("gloss_exponent", self.gloss_exponent),
+            ("translucency_exponent", self.translucency_exponent),
+        ] {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(format!("{name} must be finite and >= 0, got {x}"));
+            }
         }
         if !(self.ior.is_finite() && self.ior > 0.0) {
             return Err(format!("ior must be finite and > 0, got {}", self.ior));

@@ -11,11 +11,13 @@ mod camera;
 mod light;
 pub mod load;
 mod material;
+mod motion;
 pub mod procedural;
 
-pub use camera::Camera;
-pub use light::Light;
+pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
+pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
+pub use motion::MotionSet;
 
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
@@ -151,6 +153,17 @@ pub struct Features {
     pub emission: bool,
     pub point_lights: bool,
     pub directional_lights: bool,
+    /// Quad, disk or sphere lights: soft shadows, `shadow` samples per shading point.
+    pub area_lights: bool,
+    /// A used material has a `glossy` lobe.
+    pub glossy: bool,
+    /// A used dielectric blurs its refracted ray.
+    pub translucency: bool,
+    /// The camera has a lens (`aperture` > 0): lens samples are drawn.
+    pub depth_of_field: bool,
+    /// The shutter is open over an interval and something (geometry or the eye)
+    /// moves: shutter times are drawn.
+    pub motion: bool,
 }
 
 impl Features {
@@ -168,6 +181,11 @@ impl Features {
             (self.emission, "emission"),
             (self.point_lights, "point_lights"),
             (self.directional_lights, "directional_lights"),
+            (self.area_lights, "area_lights"),
+            (self.glossy, "glossy"),
+            (self.translucency, "translucency"),
+            (self.depth_of_field, "depth_of_field"),
+            (self.motion, "motion"),
         ];
         all.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect()
     }
@@ -182,6 +200,42 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// Paths whose throughput falls below this stop (the contribution cutoff).
     pub min_contribution: f32,
+    /// Samples per effect besides the eye (pixel) samples, which are `spp`.
+    pub samples: SampleCounts,
+}
+
+/// How many samples each distributed effect takes (Cook, Porter, Carpenter 1984). The
+/// eye (pixel) count is `spp`; these multiply it:
+///
+/// - `lens`, `time`: camera rays per pixel = `spp * lens * time`. Each eye sample
+///   carries `lens` lens points and each of those `time` shutter times; the lens points
+///   of a pixel form one stratified set of size `spp * lens`, shuffled against the
+///   pixel positions, and the times one set of size `spp * lens * time`, so that eye
+///   samples alone already stratify the lens and the shutter.
+/// - `shadow`: stratified points per area light at every shading point (point and
+///   directional lights always take one shadow ray).
+/// - `glossy`: rays per glossy or translucent lobe at the first hit of a camera ray;
+///   deeper hits take one, which keeps the ray tree from growing exponentially.
+///
+/// A count applies only when the scene has the effect: in a scene without depth of
+/// field `lens` is ignored, and so on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct SampleCounts {
+    pub shadow: u32,
+    pub glossy: u32,
+    pub lens: u32,
+    pub time: u32,
+}
+
+impl Default for SampleCounts {
+    fn default() -> Self {
+        SampleCounts {
+            shadow: 1,
+            glossy: 1,
+            lens: 1,
+            time: 1,
+        }
+    }
 }
 
 impl Default for RenderSettings {
@@ -192,6 +246,7 @@ impl Default for RenderSettings {
             spp: 1,
             max_depth: 8,
             min_contribution: 1e-3,
+            samples: SampleCounts::default(),
         }
     }
 }
@@ -205,6 +260,10 @@ pub struct Scene {
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
     pub camera: Camera,
+    /// Lens and shutter; the default is a pinhole with an instantaneous shutter.
+    pub camera_effects: CameraEffects,
+    /// Moving geometry (empty for a static scene).
+    pub motion: MotionSet,
     pub background: Vec3,
     pub ambient: Vec3,
     pub settings: RenderSettings,
@@ -214,7 +273,7 @@ pub struct Scene {
 
 impl Scene {
     pub fn primitive_count(&self) -> usize {
-        self.mesh.len() + self.spheres.len()
+        self.mesh.len() + self.spheres.len() + self.motion.len()
     }
 }
 
@@ -226,6 +285,8 @@ pub struct SceneBuilder {
     pub materials: Vec<Material>,
     pub lights: Vec<Light>,
     pub camera: Option<Camera>,
+    pub camera_effects: CameraEffects,
+    pub motion: MotionSet,
     pub background: Vec3,
     pub ambient: Vec3,
     pub settings: RenderSettings,
@@ -241,8 +302,68 @@ impl SceneBuilder {
         (self.materials.len() - 1) as u32
     }
 
+    /// Adds a light; an area light also gets emissive geometry of its shape (a quad,
+    /// a 64-gon for a disk, a sphere) with a material emitting its radiance, so that
+    /// camera, reflection and refraction rays see it.
     pub fn add_light(&mut self, l: Light) {
         self.lights.push(l);
+        let emitter = |name: String, radiance: Vec3| Material {
+            name,
+            diffuse: Vec3::ZERO,
+            emission: radiance,
+            ..Material::default()
+        };
+        let name = format!("light{}", self.lights.len() - 1);
+        match l {
+            Light::Point { .. } | Light::Directional { .. } => {}
+            Light::Quad {
+                corner,
+                edge1,
+                edge2,
+                radiance,
+            } => {
+                let m = self.add_material(emitter(name, radiance));
+                self.add_quad(corner, edge1, edge2, m);
+            }
+            Light::Disk {
+                center,
+                normal,
+                radius,
+                radiance,
+            } => {
+                let m = self.add_material(emitter(name, radiance));
+                let (t, b) = crate::geometry::orthonormal_basis(normal.normalize());
+                let c = self.add_vertex(center);
+                const SIDES: u32 = 64;
+                let first = self.mesh.xs.len() as u32;
+                for i in 0..SIDES {
+                    let a = std::f32::consts::TAU * i as f32 / SIDES as f32;
+                    self.add_vertex(center + radius * (a.cos() * t + a.sin() * b));
+                }
+                for i in 0..SIDES {
+                    self.add_triangle_indices(c, first + i, first + (i + 1) % SIDES, m);
+                }
+            }
+            Light::Sphere {
+                center,
+                radius,
+                radiance,
+            } => {
+                let m = self.add_material(emitter(name, radiance));
+                self.add_sphere(center, radius, m);
+            }
+        }
+    }
+
+    /// A sphere whose centre at time `t` is `center + t * velocity`.
+    pub fn add_moving_sphere(&mut self, center: Vec3, radius: f32, velocity: Vec3, material: u32) {
+        let s = &mut self.motion.spheres;
+        s.cx.push(center.x);
+        s.cy.push(center.y);
+        s.cz.push(center.z);
+        s.radius.push(radius);
+        s.material.push(material);
+        self.motion.sphere_velocity.push(velocity);
     }
 
     pub fn add_vertex(&mut self, p: Vec3) -> u32 {
@@ -331,6 +452,9 @@ impl SceneBuilder {
         for i in 0..self.spheres.len() {
             b = b.union(&self.spheres.sphere_bounds(i));
         }
+        if !self.motion.is_empty() {
+            b = b.union(&self.motion.bounds(self.camera_effects.shutter));
+        }
         b
     }
 
@@ -399,8 +523,13 @@ impl SceneBuilder {
             l.validate()
                 .map_err(|e| Error::parameter("light", format!("light {i}: {e}")))?;
         }
+        self.validate_motion(nmat)?;
+        self.camera_effects
+            .validate()
+            .map_err(|e| Error::parameter("camera", e))?;
         let s = &self.settings;
         crate::integrator::validate_dimensions(s.width, s.height, s.spp, s.max_depth)?;
+        crate::integrator::validate_sample_counts(&s.samples)?;
 
         let bounds = self.bounds();
         let camera = match self.camera {
@@ -411,8 +540,12 @@ impl SceneBuilder {
             None => Camera::framing(&bounds),
         };
 
-        let used =
-            |id: u32| self.mesh.material.contains(&id) || self.spheres.material.contains(&id);
+        let used = |id: u32| {
+            self.mesh.material.contains(&id)
+                || self.spheres.material.contains(&id)
+                || self.motion.mesh.material.contains(&id)
+                || self.motion.spheres.material.contains(&id)
+        };
         let mut features = Features {
             triangles: !self.mesh.is_empty(),
             spheres: !self.spheres.is_empty(),
@@ -422,8 +555,20 @@ impl SceneBuilder {
                 .lights
                 .iter()
                 .any(|l| matches!(l, Light::Directional { .. })),
+            area_lights: self.lights.iter().any(Light::is_area),
+            depth_of_field: self.camera_effects.has_depth_of_field(),
+            motion: self.camera_effects.shutter_open()
+                && (self.camera_effects.eye1.is_some_and(|e| e != camera.eye)
+                    || self.motion.sphere_velocity.iter().any(|v| *v != Vec3::ZERO)
+                    || self
+                        .motion
+                        .triangle_velocity
+                        .iter()
+                        .any(|v| *v != Vec3::ZERO)),
             ..Features::default()
         };
+        features.triangles |= !self.motion.mesh.is_empty();
+        features.spheres |= !self.motion.spheres.is_empty();
         for (i, m) in self.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -434,6 +579,8 @@ impl SceneBuilder {
             features.glass |= m.is_transmissive();
             features.textures |= m.checker.is_some();
             features.emission |= m.emission != Vec3::ZERO;
+            features.glossy |= m.is_glossy();
+            features.translucency |= m.is_translucent();
         }
 
         Ok(Scene {
@@ -442,11 +589,63 @@ impl SceneBuilder {
             materials: self.materials,
             lights: self.lights,
             camera,
+            camera_effects: self.camera_effects,
+            motion: self.motion,
             background: self.background,
             ambient: self.ambient,
             settings: self.settings,
             bounds,
             features,
         })
+    }
+}
+
+impl SceneBuilder {
+    fn validate_motion(&self, nmat: u32) -> Result<()> {
+        let bad = |msg: String| Err(Error::parameter("moving geometry", msg));
+        let m = &self.motion;
+        if m.sphere_velocity.len() != m.spheres.len() || m.triangle_velocity.len() != m.mesh.len() {
+            return bad("one velocity per moving sphere and triangle is needed".into());
+        }
+        for i in 0..m.spheres.len() {
+            let (c, r, v) = (
+                m.spheres.center(i),
+                m.spheres.radius[i],
+                m.sphere_velocity[i],
+            );
+            if !(c.is_finite() && v.is_finite() && r.is_finite() && r > 0.0) {
+                return bad(format!(
+                    "moving sphere {i}: centre {c}, radius {r}, velocity {v}: need finite values and radius > 0"
+                ));
+            }
+            if m.spheres.material[i] >= nmat {
+                return bad(format!(
+                    "moving sphere {i} uses material {}, but there are {nmat}",
+                    m.spheres.material[i]
+                ));
+            }
+        }
+        let nv = m.mesh.xs.len() as u32;
+        for i in 0..m.mesh.xs.len() {
+            let p = m.mesh.vertex(i as u32);
+            if !p.is_finite() {
+                return bad(format!("moving vertex {i} is not finite: {p}"));
+            }
+        }
+        if m.mesh.has_normals() && m.mesh.nxs.len() != m.mesh.xs.len() {
+            return bad("moving mesh: normal count differs from vertex count".into());
+        }
+        for t in 0..m.mesh.len() {
+            if [m.mesh.i0[t], m.mesh.i1[t], m.mesh.i2[t]]
+                .iter()
+                .any(|&i| i >= nv)
+            {
+                return bad(format!("moving triangle {t} uses a vertex beyond {nv}"));
+            }
+            if m.mesh.material[t] >= nmat || !m.triangle_velocity[t].is_finite() {
+                return bad(format!("moving triangle {t}: bad material or velocity"));
+            }
+        }
+        Ok(())
     }
 }

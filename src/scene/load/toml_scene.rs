@@ -11,9 +11,9 @@
 
 use super::{add_obj_mesh, line_column, load_obj, obj::utf8_or_located_error, print_warnings};
 use crate::error::{Error, Result};
-use crate::integrator::{MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SPP};
+use crate::integrator::{MAX_DEPTH, MAX_EFFECT_SAMPLES, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh, whitted_room};
-use crate::scene::{Camera, Checker, Light, Material, Scene, SceneBuilder};
+use crate::scene::{Camera, CameraEffects, Checker, Light, Material, Scene, SceneBuilder};
 use glam::{Mat3, Mat4, Vec3};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -59,6 +59,18 @@ struct RenderDef {
     spp: Option<Spanned<u32>>,
     max_depth: Option<Spanned<u32>>,
     min_contribution: Option<Spanned<f32>>,
+    samples: Option<SamplesDef>,
+}
+
+/// `samples = { eye = 1, shadow = 16, glossy = 4, lens = 1, time = 1 }`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SamplesDef {
+    eye: Option<Spanned<u32>>,
+    shadow: Option<Spanned<u32>>,
+    glossy: Option<Spanned<u32>>,
+    lens: Option<Spanned<u32>>,
+    time: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize)]
@@ -68,6 +80,12 @@ struct CameraDef {
     target: Option<V3>,
     up: Option<V3>,
     fov: Option<Spanned<f32>>,
+    aperture: Option<Spanned<f32>>,
+    focus_distance: Option<Spanned<f32>>,
+    aperture_blades: Option<Spanned<u32>>,
+    aperture_rotation: Option<Spanned<f32>>,
+    shutter: Option<Spanned<[f32; 2]>>,
+    eye1: Option<V3>,
 }
 
 #[derive(Deserialize)]
@@ -82,6 +100,9 @@ struct MaterialDef {
     ior: Option<Spanned<f32>>,
     emission: Option<V3>,
     checker: Option<CheckerDef>,
+    glossy: Option<V3>,
+    gloss_exponent: Option<Spanned<f32>>,
+    translucency_exponent: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -101,6 +122,13 @@ struct LightDef {
     intensity: Option<V3>,
     direction: Option<V3>,
     irradiance: Option<V3>,
+    corner: Option<V3>,
+    edge1: Option<V3>,
+    edge2: Option<V3>,
+    center: Option<V3>,
+    normal: Option<V3>,
+    radius: Option<Spanned<f32>>,
+    radiance: Option<V3>,
 }
 
 #[derive(Deserialize)]
@@ -109,6 +137,7 @@ struct SphereDef {
     center: V3,
     radius: Spanned<f32>,
     material: Option<Spanned<String>>,
+    velocity: Option<V3>,
 }
 
 #[derive(Deserialize)]
@@ -138,6 +167,7 @@ struct MeshDef {
     scale: Option<Spanned<toml::Value>>,
     rotate_y: Option<Spanned<f32>>,
     rotate: Option<V3>,
+    velocity: Option<V3>,
 }
 
 #[derive(Deserialize)]
@@ -296,7 +326,13 @@ impl<'a> Builder<'a> {
             let center = cx.vec3(&s.center, "center")?;
             let radius = cx.positive(&s.radius, "radius")?;
             let m = self.material(&s.material)?;
-            self.b.add_sphere(center, radius, m);
+            match &s.velocity {
+                Some(v) => {
+                    let v = cx.vec3(v, "velocity")?;
+                    self.b.add_moving_sphere(center, radius, v, m);
+                }
+                None => self.b.add_sphere(center, radius, m),
+            }
         }
         for q in &file.quad {
             let corner = cx.vec3(&q.corner, "corner")?;
@@ -338,6 +374,7 @@ impl<'a> Builder<'a> {
             self.b.ambient = cx.color(a, "ambient")?;
         }
         if let Some(c) = &file.camera {
+            self.b.camera_effects = camera_effects(cx, c.get_ref())?;
             self.b.camera = Some(self.camera(c)?);
         }
         self.b.finish()
@@ -378,6 +415,34 @@ impl<'a> Builder<'a> {
                 ));
             }
             s.min_contribution = x;
+        }
+        if let Some(n) = &r.samples {
+            if let Some(eye) = &n.eye {
+                let e = cx.range_u32(eye, "eye", 1, MAX_SPP)?;
+                if let Some(spp) = &r.spp
+                    && *spp.get_ref() != e
+                {
+                    return Err(cx.at(
+                        eye,
+                        format!(
+                            "`samples.eye` ({e}) and `spp` ({}) disagree; give one",
+                            spp.get_ref()
+                        ),
+                    ));
+                }
+                s.spp = e;
+            }
+            let counts = [
+                (&n.shadow, "shadow", &mut s.samples.shadow),
+                (&n.glossy, "glossy", &mut s.samples.glossy),
+                (&n.lens, "lens", &mut s.samples.lens),
+                (&n.time, "time", &mut s.samples.time),
+            ];
+            for (value, what, slot) in counts {
+                if let Some(v) = value {
+                    *slot = cx.range_u32(v, what, 1, MAX_EFFECT_SAMPLES)?;
+                }
+            }
         }
         Ok(())
     }
@@ -457,7 +522,20 @@ impl<'a> Builder<'a> {
             .transpose()?;
         let mesh = load_obj(&resolved)?;
         print_warnings(&mesh.warnings);
-        add_obj_mesh(&mut self.b, &mesh, transform, material);
+        match &def.velocity {
+            None => {
+                add_obj_mesh(&mut self.b, &mesh, transform, material);
+            }
+            Some(v) => {
+                let velocity = cx.vec3(v, "velocity")?;
+                // Load into an empty static mesh (materials go to the scene as usual),
+                // then move those triangles to the moving set.
+                let saved = std::mem::take(&mut self.b.mesh);
+                add_obj_mesh(&mut self.b, &mesh, transform, material);
+                let moving = std::mem::replace(&mut self.b.mesh, saved);
+                self.b.motion.add_mesh(&moving, velocity);
+            }
+        }
         Ok(())
     }
 
@@ -567,6 +645,21 @@ fn material(cx: Ctx, name: &str, def: &MaterialDef) -> Result<Material> {
     if let Some(ior) = &def.ior {
         m.ior = cx.positive(ior, "ior")?;
     }
+    if let Some(g) = &def.glossy {
+        m.glossy = cx.color(g, "glossy")?;
+    }
+    if let Some(e) = &def.gloss_exponent {
+        m.gloss_exponent = non_negative(cx, e, "gloss_exponent")?;
+    }
+    if let Some(e) = &def.translucency_exponent {
+        m.translucency_exponent = non_negative(cx, e, "translucency_exponent")?;
+        if m.translucency_exponent > 0.0 && !m.is_transmissive() {
+            return Err(cx.at(
+                e,
+                "`translucency_exponent` blurs refraction: the material needs `transmission` (or preset = \"glass\")",
+            ));
+        }
+    }
     if let Some(c) = &def.checker {
         m.checker = Some(Checker {
             color_a: cx.color(&c.a, "a")?,
@@ -585,44 +678,142 @@ fn material(cx: Ctx, name: &str, def: &MaterialDef) -> Result<Material> {
 fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
     let def = l.get_ref();
     let kind = def.kind.get_ref().as_str();
-    let (fields, a, b): (&[&str], _, _) = match kind {
-        "point" => (&["position", "intensity"], &def.position, &def.intensity),
-        "directional" => (
-            &["direction", "irradiance"],
-            &def.direction,
-            &def.irradiance,
-        ),
+    let fields: &[&str] = match kind {
+        "point" => &["position", "intensity"],
+        "directional" => &["direction", "irradiance"],
+        "quad" => &["corner", "edge1", "edge2", "radiance"],
+        "disk" => &["center", "normal", "radius", "radiance"],
+        "sphere" => &["center", "radius", "radiance"],
         other => {
             return Err(cx.at(
                 &def.kind,
-                format!("unknown light type `{other}`; expected one of: point, directional"),
+                format!(
+                    "unknown light type `{other}`; expected one of: point, directional, quad, disk, sphere"
+                ),
             ));
         }
     };
+    let span = |v: &Option<V3>| v.as_ref().map(|v| v.span());
     let present = [
-        ("position", def.position.as_ref().map(|v| v.span())),
-        ("intensity", def.intensity.as_ref().map(|v| v.span())),
-        ("direction", def.direction.as_ref().map(|v| v.span())),
-        ("irradiance", def.irradiance.as_ref().map(|v| v.span())),
+        ("position", span(&def.position)),
+        ("intensity", span(&def.intensity)),
+        ("direction", span(&def.direction)),
+        ("irradiance", span(&def.irradiance)),
+        ("corner", span(&def.corner)),
+        ("edge1", span(&def.edge1)),
+        ("edge2", span(&def.edge2)),
+        ("center", span(&def.center)),
+        ("normal", span(&def.normal)),
+        ("radius", def.radius.as_ref().map(|v| v.span())),
+        ("radiance", span(&def.radiance)),
     ];
     let what = format!("a {kind} light");
     reject_foreign_fields(cx, &present, fields, &what)?;
-    let (Some(a), Some(b)) = (a, b) else {
+    if let Some((missing, _)) = present
+        .iter()
+        .find(|(name, span)| fields.contains(name) && span.is_none())
+    {
         return Err(cx.at(
             l,
-            format!("{what} needs `{}` and `{}`", fields[0], fields[1]),
+            format!(
+                "{what} needs `{}` (missing `{missing}`)",
+                fields.join("`, `")
+            ),
         ));
-    };
+    }
+    // Every field this type needs is present (checked above).
+    fn v(x: &Option<V3>) -> &V3 {
+        x.as_ref().expect("checked present")
+    }
     Ok(match kind {
         "point" => Light::Point {
-            position: cx.vec3(a, "position")?,
-            intensity: cx.color(b, "intensity")?,
+            position: cx.vec3(v(&def.position), "position")?,
+            intensity: cx.color(v(&def.intensity), "intensity")?,
         },
-        _ => Light::Directional {
-            direction: cx.direction(a, "direction")?.normalize(),
-            irradiance: cx.color(b, "irradiance")?,
+        "directional" => Light::Directional {
+            direction: cx.direction(v(&def.direction), "direction")?.normalize(),
+            irradiance: cx.color(v(&def.irradiance), "irradiance")?,
+        },
+        "quad" => {
+            let edge1 = cx.direction(v(&def.edge1), "edge1")?;
+            let edge2 = cx.direction(v(&def.edge2), "edge2")?;
+            if edge1.cross(edge2).length_squared()
+                <= 1e-12 * edge1.length_squared() * edge2.length_squared()
+            {
+                return Err(cx.at(
+                    v(&def.edge2),
+                    "`edge2` is parallel to `edge1`: a quad light needs two independent edges",
+                ));
+            }
+            Light::Quad {
+                corner: cx.vec3(v(&def.corner), "corner")?,
+                edge1,
+                edge2,
+                radiance: cx.color(v(&def.radiance), "radiance")?,
+            }
+        }
+        "disk" => Light::Disk {
+            center: cx.vec3(v(&def.center), "center")?,
+            normal: cx.direction(v(&def.normal), "normal")?.normalize(),
+            radius: cx.positive(def.radius.as_ref().expect("checked present"), "radius")?,
+            radiance: cx.color(v(&def.radiance), "radiance")?,
+        },
+        _ => Light::Sphere {
+            center: cx.vec3(v(&def.center), "center")?,
+            radius: cx.positive(def.radius.as_ref().expect("checked present"), "radius")?,
+            radiance: cx.color(v(&def.radiance), "radiance")?,
         },
     })
+}
+
+fn non_negative(cx: Ctx, v: &Spanned<f32>, what: &str) -> Result<f32> {
+    let x = *v.get_ref();
+    if !(x.is_finite() && x >= 0.0) {
+        return Err(cx.at(v, format!("`{what}` must be a finite number >= 0, got {x}")));
+    }
+    Ok(x)
+}
+
+/// Lens and shutter keys of `[camera]`.
+fn camera_effects(cx: Ctx, def: &CameraDef) -> Result<CameraEffects> {
+    let mut e = CameraEffects::default();
+    if let Some(a) = &def.aperture {
+        e.aperture = non_negative(cx, a, "aperture")?;
+    }
+    if let Some(f) = &def.focus_distance {
+        e.focus_distance = Some(cx.positive(f, "focus_distance")?);
+    }
+    if let Some(b) = &def.aperture_blades {
+        let n = *b.get_ref();
+        if n != 0 && !(3..=64).contains(&n) {
+            return Err(cx.at(
+                b,
+                format!("`aperture_blades` must be 0 (round) or between 3 and 64, got {n}"),
+            ));
+        }
+        e.aperture_blades = n;
+    }
+    if let Some(r) = &def.aperture_rotation {
+        let x = *r.get_ref();
+        if !x.is_finite() {
+            return Err(cx.at(r, "`aperture_rotation` must be a finite number of degrees"));
+        }
+        e.aperture_rotation_deg = x;
+    }
+    if let Some(sh) = &def.shutter {
+        let [open, close] = *sh.get_ref();
+        if !(open.is_finite() && close.is_finite() && open <= close) {
+            return Err(cx.at(
+                sh,
+                format!("`shutter` must be [open, close] with finite open <= close, got [{open}, {close}]"),
+            ));
+        }
+        e.shutter = [open, close];
+    }
+    if let Some(e1) = &def.eye1 {
+        e.eye1 = Some(cx.vec3(e1, "eye1")?);
+    }
+    Ok(e)
 }
 
 /// A field that exists in the struct but not for this `type` is an error at that field.

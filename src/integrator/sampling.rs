@@ -1,0 +1,539 @@
+//! Sample patterns and warps for distribution ray tracing (Cook, Porter, Carpenter,
+//! "Distributed Ray Tracing", SIGGRAPH 1984): pixel positions, lens positions, shutter
+//! times, light points and glossy directions.
+//!
+//! Every set is drawn from the pixel's own random stream ([`PixelRng`]), in a fixed
+//! order, so a render is bit-identical for a seed whatever the thread count. A set of
+//! `n` points follows the [`SamplerKind`] of the render:
+//!
+//! - `grid`: the regular `k × k` lattice of cell centres (`k = ceil(sqrt n)`), no
+//!   randomness: aliasing instead of noise;
+//! - `jittered`: one uniform point per cell of a `k × k` grid for square `n`, N-rooks
+//!   (Latin hypercube, Shirley 1991) otherwise;
+//! - `random`: independent uniform points;
+//! - `halton`: the Halton sequence (bases 2, 3 for pixels, 5, 7 for the lens, 11 for
+//!   time, 13, 17 for per-hit sets) shifted by a per-set random Cranley-Patterson
+//!   rotation (toroidal shift), so pixels decorrelate and every estimate stays unbiased.
+
+use crate::error::{Error, Result};
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_PI_4, PI, TAU};
+use std::str::FromStr;
+
+/// Which pattern a render uses for its sample sets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SamplerKind {
+    Grid,
+    /// Stratified; the default, and what the renderer did before samplers were
+    /// selectable (a single pixel sample sits at the pixel centre).
+    #[default]
+    Jittered,
+    Random,
+    Halton,
+}
+
+impl SamplerKind {
+    pub const ALL: &'static [SamplerKind] = &[
+        SamplerKind::Grid,
+        SamplerKind::Jittered,
+        SamplerKind::Random,
+        SamplerKind::Halton,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SamplerKind::Grid => "grid",
+            SamplerKind::Jittered => "jittered",
+            SamplerKind::Random => "random",
+            SamplerKind::Halton => "halton",
+        }
+    }
+}
+
+/// Pixel reconstruction filter.
+///
+/// `box`: the mean of the samples inside the pixel. `gaussian`: per-pixel weighted
+/// reconstruction: the pixel draws its samples over a 3 × 3 pixel footprint (radius
+/// 1.5 px) and weights each by a truncated Gaussian (σ = 0.5 px) of its distance to the
+/// pixel centre, dividing by the sum of weights. No splatting into neighbours, so tiles
+/// stay independent and renders deterministic; the price is that samples are not
+/// shared between pixels (same ray count, wider footprint per pixel).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FilterKind {
+    #[default]
+    Box,
+    Gaussian,
+}
+
+impl FilterKind {
+    pub const ALL: &'static [FilterKind] = &[FilterKind::Box, FilterKind::Gaussian];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterKind::Box => "box",
+            FilterKind::Gaussian => "gaussian",
+        }
+    }
+
+    /// Radius of the footprint in pixels.
+    pub fn radius(self) -> f32 {
+        match self {
+            FilterKind::Box => 0.5,
+            FilterKind::Gaussian => GAUSSIAN_RADIUS,
+        }
+    }
+
+    /// Weight of a sample at offset `(dx, dy)` from the pixel centre.
+    pub fn weight(self, dx: f32, dy: f32) -> f32 {
+        match self {
+            FilterKind::Box => 1.0,
+            FilterKind::Gaussian => {
+                let g = |d2: f32| (-d2 / (2.0 * GAUSSIAN_SIGMA * GAUSSIAN_SIGMA)).exp();
+                (g(dx * dx + dy * dy) - g(GAUSSIAN_RADIUS * GAUSSIAN_RADIUS)).max(0.0)
+            }
+        }
+    }
+}
+
+const GAUSSIAN_RADIUS: f32 = 1.5;
+const GAUSSIAN_SIGMA: f32 = 0.5;
+
+fn parse_named<T: Copy>(all: &[T], name: fn(T) -> &'static str, what: &str, s: &str) -> Result<T> {
+    all.iter().copied().find(|k| name(*k) == s).ok_or_else(|| {
+        let names: Vec<_> = all.iter().map(|k| name(*k)).collect();
+        Error::parameter(
+            what,
+            format!("unknown {what} '{s}', expected one of {}", names.join(", ")),
+        )
+    })
+}
+
+impl FromStr for SamplerKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        parse_named(SamplerKind::ALL, SamplerKind::name, "sampler", s)
+    }
+}
+
+impl FromStr for FilterKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        parse_named(FilterKind::ALL, FilterKind::name, "filter", s)
+    }
+}
+
+impl std::fmt::Display for SamplerKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::fmt::Display for FilterKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which Halton bases a set uses, so that the dimensions of one path never share a
+/// base (sharing one would correlate, e.g., lens position with pixel position).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dimension {
+    Pixel,
+    Lens,
+    Time,
+    /// Per-hit sets: light points and glossy directions.
+    Hit,
+}
+
+impl Dimension {
+    fn bases(self) -> (u32, u32) {
+        match self {
+            Dimension::Pixel => (2, 3),
+            Dimension::Lens => (5, 7),
+            Dimension::Time => (11, 11),
+            Dimension::Hit => (13, 17),
+        }
+    }
+}
+
+/// Fills `out` with `n` points in `[0, 1)²` of pattern `kind`. With `centre_single`, a
+/// jittered set of one point is the cell centre (the renderer's historical 1-spp pixel
+/// position); everywhere else a single point is random, as an estimator needs.
+pub fn fill_2d(
+    kind: SamplerKind,
+    n: u32,
+    dim: Dimension,
+    centre_single: bool,
+    rng: &mut PixelRng,
+    out: &mut Vec<(f32, f32)>,
+) {
+    out.clear();
+    match kind {
+        SamplerKind::Grid => {
+            let k = ceil_sqrt(n);
+            let rows = n.div_ceil(k);
+            for i in 0..n {
+                out.push((
+                    ((i % k) as f32 + 0.5) / k as f32,
+                    ((i / k) as f32 + 0.5) / rows as f32,
+                ));
+            }
+        }
+        SamplerKind::Jittered => {
+            let k = n.isqrt();
+            if n == 1 && centre_single {
+                out.push((0.5, 0.5));
+            } else if k * k == n {
+                let inv = 1.0 / k as f32;
+                for j in 0..k {
+                    for i in 0..k {
+                        let (u, v) = (rng.next_f32(), rng.next_f32());
+                        out.push(((i as f32 + u) * inv, (j as f32 + v) * inv));
+                    }
+                }
+            } else {
+                // N-rooks: n jittered strata in x paired with a permutation of n in y.
+                let mut perm: Vec<u32> = (0..n).collect();
+                shuffle(&mut perm, rng);
+                let inv = 1.0 / n as f32;
+                for (i, &j) in perm.iter().enumerate() {
+                    let (u, v) = (rng.next_f32(), rng.next_f32());
+                    out.push(((i as f32 + u) * inv, (j as f32 + v) * inv));
+                }
+            }
+        }
+        SamplerKind::Random => {
+            for _ in 0..n {
+                out.push((rng.next_f32(), rng.next_f32()));
+            }
+        }
+        SamplerKind::Halton => {
+            let (b0, b1) = dim.bases();
+            let (r0, r1) = (rng.next_f32(), rng.next_f32());
+            for i in 0..n {
+                out.push((
+                    rotate(radical_inverse(b0, i), r0),
+                    rotate(radical_inverse(b1, i), r1),
+                ));
+            }
+        }
+    }
+}
+
+/// Fills `out` with `n` values in `[0, 1)` of pattern `kind` (grid: cell centres,
+/// jittered: one per stratum, random, or rotated Halton).
+pub fn fill_1d(kind: SamplerKind, n: u32, dim: Dimension, rng: &mut PixelRng, out: &mut Vec<f32>) {
+    out.clear();
+    let inv = 1.0 / n as f32;
+    match kind {
+        SamplerKind::Grid => out.extend((0..n).map(|i| (i as f32 + 0.5) * inv)),
+        SamplerKind::Jittered => {
+            for i in 0..n {
+                out.push(((i as f32 + rng.next_f32()) * inv).min(ONE_MINUS_EPSILON));
+            }
+        }
+        SamplerKind::Random => {
+            for _ in 0..n {
+                out.push(rng.next_f32());
+            }
+        }
+        SamplerKind::Halton => {
+            let r = rng.next_f32();
+            let b = dim.bases().0;
+            out.extend((0..n).map(|i| rotate(radical_inverse(b, i), r)));
+        }
+    }
+}
+
+/// Shuffles a set that will be paired with another one (lens with pixel positions,
+/// time with both), so that stratum `i` of one set does not always meet stratum `i`
+/// of the other (Cook 1986, "Stochastic Sampling in Computer Graphics"). Halton and
+/// random sets are already decorrelated by their bases and are left alone.
+pub fn decorrelate<T>(kind: SamplerKind, set: &mut [T], rng: &mut PixelRng) {
+    if matches!(kind, SamplerKind::Grid | SamplerKind::Jittered) {
+        shuffle(set, rng);
+    }
+}
+
+fn shuffle<T>(set: &mut [T], rng: &mut PixelRng) {
+    // Fisher-Yates.
+    for i in (1..set.len() as u32).rev() {
+        let j = rng.below(i + 1);
+        set.swap(i as usize, j as usize);
+    }
+}
+
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// Cranley-Patterson rotation: `x + r mod 1`, kept below 1.
+#[inline]
+fn rotate(x: f32, r: f32) -> f32 {
+    let s = x + r;
+    let s = if s >= 1.0 { s - 1.0 } else { s };
+    s.min(ONE_MINUS_EPSILON)
+}
+
+fn ceil_sqrt(n: u32) -> u32 {
+    let k = n.isqrt();
+    if k * k == n { k } else { k + 1 }
+}
+
+/// The van der Corput radical inverse of `i` in base `b`.
+pub fn radical_inverse(b: u32, mut i: u32) -> f32 {
+    let inv_b = 1.0 / b as f64;
+    let mut f = inv_b;
+    let mut r = 0.0f64;
+    while i > 0 {
+        r += (i % b) as f64 * f;
+        i /= b;
+        f *= inv_b;
+    }
+    (r as f32).min(ONE_MINUS_EPSILON)
+}
+
+/// Concentric map of `[0, 1)²` onto the unit disk (Shirley, Chiu 1997): keeps
+/// strata compact, unlike the polar map.
+pub fn concentric_disk(u: f32, v: f32) -> Vec2 {
+    let a = 2.0 * u - 1.0;
+    let b = 2.0 * v - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, FRAC_PI_4 * (b / a))
+    } else {
+        (b, 0.5 * PI - FRAC_PI_4 * (a / b))
+    };
+    Vec2::new(r * phi.cos(), r * phi.sin())
+}
+
+/// Uniform point on an aperture of unit circumradius: the disk for `blades == 0`, else
+/// a regular polygon with `blades` corners, the first at angle `rotation` (radians).
+/// The polygon is cut into `blades` triangles around the centre; `u` picks the
+/// triangle (all have equal area) and is reused, rescaled, inside it.
+pub fn sample_aperture(u: f32, v: f32, blades: u32, rotation: f32) -> Vec2 {
+    if blades < 3 {
+        return concentric_disk(u, v);
+    }
+    let x = u * blades as f32;
+    let k = (x as u32).min(blades - 1);
+    let u = (x - k as f32).min(ONE_MINUS_EPSILON);
+    let corner = |i: u32| {
+        let a = rotation + TAU * i as f32 / blades as f32;
+        Vec2::new(a.cos(), a.sin())
+    };
+    // Uniform in the triangle (0, c_k, c_k+1): sqrt(u) along the spoke, v across.
+    u.sqrt() * corner(k).lerp(corner(k + 1), v)
+}
+
+/// A direction in the Phong lobe `cos^n α` around the unit `axis`, with the cosine
+/// distribution sampled exactly (`cos α = u^(1/(n+1))`), so an estimator that averages
+/// radiance over such directions needs no weights.
+pub fn sample_phong_lobe(axis: Vec3, exponent: f32, u: f32, v: f32) -> Vec3 {
+    let cos = u.powf(1.0 / (exponent + 1.0));
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = TAU * v;
+    let (t, b) = crate::geometry::orthonormal_basis(axis);
+    (sin * phi.cos() * t + sin * phi.sin() * b + cos * axis).normalize()
+}
+
+/// A per-pixel random stream: SplitMix64 (Steele, Lea, Flood 2014) started from a hash
+/// of `(seed, pixel index)`. Independent of which thread renders the pixel, which is
+/// what makes images reproducible across thread counts.
+#[derive(Clone, Debug)]
+pub struct PixelRng {
+    state: u64,
+}
+
+const GOLDEN_GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
+
+impl PixelRng {
+    pub fn new(seed: u64, pixel: u64) -> Self {
+        // Hash both so neighbouring pixels and neighbouring seeds start far apart.
+        PixelRng {
+            state: mix64(seed ^ mix64(pixel.wrapping_add(GOLDEN_GAMMA))),
+        }
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
+        mix64(self.state)
+    }
+
+    /// Uniform in `[0, 1)`: the top 24 bits, so every value is exact in f32 and 1.0
+    /// can never come out (it would step into the next stratum or pixel).
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+
+    /// Uniform in `[0, n)` by multiply-shift (Lemire 2019); the bias of at most
+    /// `n / 2^32` is irrelevant for shuffling sample strata.
+    pub fn below(&mut self, n: u32) -> u32 {
+        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
+    }
+}
+
+/// SplitMix64's output function (Stafford's "Mix13" variant).
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stratified_positions_cover_every_stratum() {
+        let mut rng = PixelRng::new(7, 3);
+        let mut pos = Vec::new();
+        for spp in [1u32, 4, 9, 16, 2, 3, 5, 12] {
+            fill_2d(
+                SamplerKind::Jittered,
+                spp,
+                Dimension::Pixel,
+                true,
+                &mut rng,
+                &mut pos,
+            );
+            assert_eq!(pos.len(), spp as usize);
+            assert!(
+                pos.iter()
+                    .all(|&(x, y)| (0.0..1.0).contains(&x) && (0.0..1.0).contains(&y))
+            );
+            if spp == 1 {
+                assert_eq!(pos, vec![(0.5, 0.5)]);
+                continue;
+            }
+            // Both 1D projections hit each of the spp (or k) strata exactly once.
+            let k = spp.isqrt();
+            let strata = if k * k == spp { k } else { spp };
+            for axis in 0..2 {
+                let mut count = vec![0u32; strata as usize];
+                for &(x, y) in &pos {
+                    let c = if axis == 0 { x } else { y };
+                    count[(c * strata as f32) as usize] += 1;
+                }
+                assert!(
+                    count.iter().all(|&c| c == spp / strata),
+                    "spp {spp}: {count:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn every_pattern_stays_in_the_unit_square() {
+        let mut rng = PixelRng::new(1, 2);
+        let mut pos = Vec::new();
+        let mut t = Vec::new();
+        for &kind in SamplerKind::ALL {
+            for n in [1u32, 2, 7, 16, 33] {
+                fill_2d(kind, n, Dimension::Lens, false, &mut rng, &mut pos);
+                assert_eq!(pos.len(), n as usize);
+                assert!(
+                    pos.iter()
+                        .all(|&(x, y)| (0.0..1.0).contains(&x) && (0.0..1.0).contains(&y)),
+                    "{kind} {n}"
+                );
+                fill_1d(kind, n, Dimension::Time, &mut rng, &mut t);
+                assert_eq!(t.len(), n as usize);
+                assert!(t.iter().all(|x| (0.0..1.0).contains(x)));
+                if kind != SamplerKind::Random {
+                    // grid, jittered and Halton put one value in each of n strata
+                    let mut seen = vec![0; n as usize];
+                    for x in &t {
+                        seen[(x * n as f32) as usize] += 1;
+                    }
+                    if kind != SamplerKind::Halton {
+                        assert!(seen.iter().all(|&c| c == 1), "{kind} {n}: {t:?}");
+                    }
+                }
+            }
+        }
+        assert_eq!(radical_inverse(2, 1), 0.5);
+        assert_eq!(radical_inverse(2, 3), 0.75);
+        assert!((radical_inverse(3, 5) - (2.0 / 3.0 + 1.0 / 9.0)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn apertures_are_uniform_and_bounded() {
+        for blades in [0u32, 5, 6] {
+            let mut rng = PixelRng::new(3, blades as u64);
+            let n = 20_000;
+            let mut mean = Vec2::ZERO;
+            let mut r2 = 0.0;
+            for _ in 0..n {
+                let p = sample_aperture(rng.next_f32(), rng.next_f32(), blades, 0.3);
+                assert!(p.length() <= 1.0 + 1e-5);
+                mean += p;
+                r2 += p.length_squared();
+            }
+            mean /= n as f32;
+            r2 /= n as f32;
+            assert!(mean.length() < 0.02, "{blades}: {mean}");
+            // Uniform disk: E[r²] = 1/2; a regular polygon of circumradius 1 has
+            // E[r²] = (1 + 2 cos²(π/n)) / 6, slightly less.
+            let expect = if blades == 0 {
+                0.5
+            } else {
+                let c = (PI / blades as f32).cos();
+                (1.0 + 2.0 * c * c) / 6.0
+            };
+            assert!((r2 - expect).abs() < 0.01, "{blades}: {r2} vs {expect}");
+        }
+    }
+
+    #[test]
+    fn phong_lobe_mean_cosine() {
+        // E[cos α] = (n + 1) / (n + 2) for the cos^n lobe.
+        let axis = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let mut rng = PixelRng::new(5, 5);
+        for n in [0.0f32, 10.0, 200.0] {
+            let m = 20_000;
+            let mean: f32 = (0..m)
+                .map(|_| sample_phong_lobe(axis, n, rng.next_f32(), rng.next_f32()).dot(axis))
+                .sum::<f32>()
+                / m as f32;
+            let expect = (n + 1.0) / (n + 2.0);
+            assert!((mean - expect).abs() < 0.01, "n {n}: {mean} vs {expect}");
+        }
+    }
+
+    #[test]
+    fn filters() {
+        assert_eq!(FilterKind::Box.weight(0.4, -0.3), 1.0);
+        let g = FilterKind::Gaussian;
+        assert!(g.weight(0.0, 0.0) > g.weight(0.5, 0.0));
+        assert_eq!(g.weight(1.5, 0.1), 0.0);
+        assert_eq!(
+            "halton".parse::<SamplerKind>().unwrap(),
+            SamplerKind::Halton
+        );
+        assert!("sobol".parse::<SamplerKind>().is_err());
+        assert_eq!(
+            "gaussian".parse::<FilterKind>().unwrap(),
+            FilterKind::Gaussian
+        );
+    }
+
+    #[test]
+    fn pixel_streams_depend_on_seed_and_pixel_only() {
+        let draw = |seed, pixel| {
+            let mut r = PixelRng::new(seed, pixel);
+            (0..4).map(|_| r.next_u64()).collect::<Vec<_>>()
+        };
+        assert_eq!(draw(1, 2), draw(1, 2));
+        assert_ne!(draw(1, 2), draw(1, 3));
+        assert_ne!(draw(1, 2), draw(2, 2));
+        let mut r = PixelRng::new(0, 0);
+        for _ in 0..10_000 {
+            let x = r.next_f32();
+            assert!((0.0..1.0).contains(&x));
+            assert!(r.below(3) < 3);
+        }
+    }
+}
