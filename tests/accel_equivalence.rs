@@ -4,8 +4,12 @@
 mod common;
 
 use common::*;
-use packet_render::accel::{Accel, AccelKind, BruteForce, Primitives};
+use glam::Vec3;
+use packet_render::accel::{
+    Accel, AccelKind, BruteForce, Grid, GridOptions, Primitives, Spheres, Triangles,
+};
 use packet_render::geometry::{Aabb, Ray, RayQuery};
+use packet_render::scene::{Material, SceneBuilder, procedural};
 use rayon::prelude::*;
 
 fn bounds_of<P: Primitives>(p: &P) -> Aabb {
@@ -104,4 +108,125 @@ fn shortened_rays_and_intervals() {
             }
         }
     }
+}
+
+/// The triangles of `procedural::tessellated_mesh` (at least `n`, radius `radius`).
+fn tessellated(n: usize, radius: f32) -> Triangles {
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material::default());
+    procedural::tessellated_mesh(&mut b, n, Vec3::ZERO, radius, m);
+    let corners: Vec<[Vec3; 3]> = (0..b.mesh.len()).map(|t| b.mesh.corners(t)).collect();
+    Triangles::from_corners(&corners)
+}
+
+#[test]
+fn procedural_tessellated_mesh() {
+    let prims = tessellated(5000, 1.0);
+    let rays = random_rays(&bounds_of(&prims), 15_000, 5);
+    assert_matches_bruteforce("tessellated", prims, &rays);
+}
+
+#[test]
+fn procedural_sphereflake() {
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material::default());
+    assert_eq!(
+        procedural::sphereflake(&mut b, 3, Vec3::new(0.0, 0.5, 0.0), 0.5, m),
+        820
+    );
+    let prims = Spheres::from_set(&b.spheres);
+    let rays = random_rays(&bounds_of(&prims), 15_000, 6);
+    assert_matches_bruteforce("procedural sphereflake", prims, &rays);
+}
+
+/// A dense 20k-triangle blob of radius 1 inside a 12-triangle box of size 1000: the case
+/// where a uniform grid puts the whole blob into a few cells.
+#[test]
+fn teapot_in_a_stadium() {
+    let blob = tessellated(20_000, 1.0);
+    let (lo, hi) = (Vec3::splat(-500.0), Vec3::splat(500.0));
+    let c = |x: bool, y: bool, z: bool| {
+        Vec3::new(
+            if x { hi.x } else { lo.x },
+            if y { hi.y } else { lo.y },
+            if z { hi.z } else { lo.z },
+        )
+    };
+    let mut corners: Vec<[Vec3; 3]> = (0..blob.count())
+        .map(|i| [blob.v0[i], blob.v1[i], blob.v2[i]])
+        .collect();
+    for axis in 0..3 {
+        for side in [false, true] {
+            // the two triangles of the face `axis = side`
+            let p = |u: bool, v: bool| match axis {
+                0 => c(side, u, v),
+                1 => c(u, side, v),
+                _ => c(u, v, side),
+            };
+            corners.push([p(false, false), p(true, false), p(true, true)]);
+            corners.push([p(false, false), p(true, true), p(false, true)]);
+        }
+    }
+    let prims = Triangles::from_corners(&corners);
+    let mut rays = random_rays(&bounds_of(&blob), 5000, 7);
+    rays.extend(random_rays(&Aabb::new(lo * 0.9, hi * 0.9), 1500, 8));
+    assert_matches_bruteforce("teapot in a stadium", prims, &rays);
+}
+
+#[test]
+fn counting_entry_points() {
+    let prims = triangle_soup(500, 9);
+    let rays = random_rays(&bounds_of(&prims), 300, 10);
+    for kind in AccelKind::ALL {
+        let accel = kind.build(prims.clone());
+        let Some(_) = accel.traversal_counts(&rays[0]) else {
+            assert_eq!(*kind, AccelKind::Bvh4, "{kind} has no counting twin");
+            continue;
+        };
+        let (mut nodes, mut tests) = (0, 0);
+        for r in &rays {
+            let c = accel.traversal_counts(r).unwrap();
+            nodes += c.nodes;
+            tests += c.prim_tests;
+        }
+        assert!(nodes > 0 && tests > 0, "{kind}");
+        if *kind != AccelKind::BruteForce {
+            assert!(tests < 500 * rays.len() as u64 / 4, "{kind}: {tests} tests");
+        }
+        // invalid rays do no work
+        let bad = Ray::new(Vec3::ZERO, Vec3::ZERO);
+        assert_eq!(accel.traversal_counts(&bad).unwrap().prim_tests, 0, "{kind}");
+    }
+}
+
+/// A triangle spanning many grid cells is tested once per ray with mailboxing, once per
+/// cell without.
+#[test]
+fn grid_mailbox_tests_spanning_primitive_once() {
+    let mut corners = vec![[
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(100.0, 0.0, 100.0),
+        Vec3::new(0.0, 1.0, 100.0),
+    ]];
+    for i in 0..999 {
+        let p = Vec3::new((i % 10) as f32 * 10.0, 50.0 + (i / 100) as f32, (i / 10 % 10) as f32 * 10.0);
+        corners.push([p, p + Vec3::X, p + Vec3::Z]);
+    }
+    let prims = Triangles::from_corners(&corners);
+    let on = Grid::build(prims.clone());
+    let off = Grid::build_with(
+        prims,
+        GridOptions {
+            mailbox: false,
+            ..Default::default()
+        },
+    );
+    // along the big triangle's diagonal, just off its plane, through many cells
+    let ray = Ray::new(Vec3::new(0.5, 0.5, 0.0), Vec3::new(1.0, 0.0, 1.0));
+    let a = on.traversal_counts(&ray).unwrap();
+    let b = off.traversal_counts(&ray).unwrap();
+    assert_eq!(on.closest_hit(&ray), off.closest_hit(&ray));
+    assert!(a.nodes >= 10, "{a:?}");
+    assert_eq!(a.prim_tests, 1, "{a:?}");
+    assert!(b.prim_tests >= 10, "{b:?}");
 }
