@@ -39,7 +39,11 @@ impl<P: Primitives> Accel for BruteForce<P> {
     }
 
     fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
-        let n = if ray.is_valid() { self.prims.count() as u64 } else { 0 };
+        let n = if ray.is_valid() {
+            self.prims.count() as u64
+        } else {
+            0
+        };
         Some(TraversalCounts {
             nodes: (n > 0) as u64,
             prim_tests: n,

@@ -74,7 +74,11 @@ impl<P: Primitives> Grid<P> {
         let n = prims.count();
         let scene = (0..n).fold(Aabb::EMPTY, |b, i| b.union(&prims.bounds(i)));
         let pad = conservative_pad(&scene);
-        let bounds = if n == 0 { Aabb::EMPTY } else { grown(&scene, pad) };
+        let bounds = if n == 0 {
+            Aabb::EMPTY
+        } else {
+            grown(&scene, pad)
+        };
         let extent = bounds.extent();
         let mut res = opts
             .resolution
@@ -97,9 +101,7 @@ impl<P: Primitives> Grid<P> {
                 let b = grown(&prims.bounds(i), pad);
                 let lo = cell_of(b.min, bounds.min, inv, res);
                 let hi = cell_of(b.max, bounds.min, inv, res);
-                total += (0..3)
-                    .map(|a| (hi[a] - lo[a] + 1) as u64)
-                    .product::<u64>();
+                total += (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product::<u64>();
                 ranges.push((lo, hi));
             }
             if total <= budget || opts.resolution.is_some() || res == [1, 1, 1] {
@@ -381,13 +383,13 @@ mod tests {
     fn mailbox_tests_a_spanning_primitive_once() {
         // One huge diagonal triangle crossing the whole grid plus small ones far from
         // the test ray, which runs along the big triangle through many cells.
-        let mut corners = vec![tri(
-            [0.0, 0.0, 0.0],
-            [100.0, 100.0, 0.0],
-            [0.0, 100.0, 1.0],
-        )];
+        let mut corners = vec![tri([0.0, 0.0, 0.0], [100.0, 100.0, 0.0], [0.0, 100.0, 1.0])];
         for i in 0..2000 {
-            let p = Vec3::new(90.0 + (i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32);
+            let p = Vec3::new(
+                90.0 + (i % 10) as f32,
+                (i / 10 % 10) as f32,
+                (i / 100) as f32,
+            );
             corners.push([p, p + Vec3::X * 0.5, p + Vec3::Y * 0.5]);
         }
         let prims = Triangles::from_corners(&corners);

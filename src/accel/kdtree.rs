@@ -207,7 +207,11 @@ impl<P: Primitives> KdTree<P> {
         let bounds: Vec<Aabb> = (0..n).map(|i| prims.bounds(i)).collect();
         let scene = bounds.iter().fold(Aabb::EMPTY, |b, p| b.union(p));
         let pad = conservative_pad(&scene);
-        let root = if n == 0 { Aabb::EMPTY } else { grown(&scene, pad) };
+        let root = if n == 0 {
+            Aabb::EMPTY
+        } else {
+            grown(&scene, pad)
+        };
         let max_depth = ((8.0 + 1.3 * (n.max(1) as f64).log2()).round() as usize).min(MAX_DEPTH);
         let mut b = Builder {
             prims: &prims,

@@ -121,13 +121,8 @@ impl<P: Primitives> Builder<'_, P> {
             first: first as u32,
             count: INTERIOR,
         };
-        self.nodes.resize(
-            first + 8,
-            OctreeNode {
-                first: 0,
-                count: 0,
-            },
-        );
+        self.nodes
+            .resize(first + 8, OctreeNode { first: 0, count: 0 });
         for (c, list) in children.into_iter().enumerate() {
             let (clo, chi) = child_box(lo, hi, mid, c);
             self.build(first + c, clo, chi, list, depth + 1);

@@ -183,9 +183,9 @@ mod tests {
         let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
         // diagonal triangle whose bounds cover the box's corner region but which misses it
         let far = [
-            Vec3::new(1.5, 0.0, 1.5),
-            Vec3::new(1.5, 1.5, 0.0),
-            Vec3::new(0.0, 1.5, 1.5),
+            Vec3::new(1.65, 0.0, 1.65),
+            Vec3::new(1.65, 1.65, 0.0),
+            Vec3::new(0.0, 1.65, 1.65),
         ];
         assert!(!triangle_overlaps_box(far[0], far[1], far[2], &b));
         let through = [
