@@ -6,8 +6,9 @@
 //! [`Protocol`] unchanged. A TOML scene with spheres only runs a sphere-aware variant of
 //! it ([`SphereProtocol`]): the same framing, camera, light, offsets and random numbers,
 //! with the sphere's normal `normalize(p - centre)` in place of the triangle's
-//! geometric normal. A scene with both is compared over its triangles (its spheres are
-//! left out and the report says so).
+//! geometric normal. A scene with both is compared over the more numerous kind (the
+//! other is left out, and the report says so): the sphereflake scene runs over its
+//! spheres, not its two floor triangles.
 
 use super::{
     BenchCamera, Framing, Protocol, SingleRay, TraceMode, Workload, cosine_dir, median,
@@ -98,14 +99,16 @@ impl CompareInput {
             ));
         }
         let scene = crate::scene::load::load_scene(path)?;
-        if !scene.mesh.is_empty() {
-            let note = (!scene.spheres.is_empty()).then(|| {
-                format!(
-                    "note: the scene's {} spheres are left out; the protocol runs over its {} triangles",
-                    scene.spheres.len(),
-                    scene.mesh.len()
-                )
-            });
+        let (tris, spheres) = (scene.mesh.len(), scene.spheres.len());
+        let note = (tris > 0 && spheres > 0).then(|| {
+            let (used, n, left, m) = if tris >= spheres {
+                ("triangles", tris, "spheres", spheres)
+            } else {
+                ("spheres", spheres, "triangles", tris)
+            };
+            format!("note: the protocol runs over the scene's {n} {used}; its {m} {left} are left out")
+        });
+        if tris > 0 && tris >= spheres {
             let positions = (0..scene.mesh.vertex_count() as u32)
                 .map(|i| scene.mesh.vertex(i))
                 .collect();
@@ -117,13 +120,13 @@ impl CompareInput {
                 },
                 note,
             ))
-        } else if !scene.spheres.is_empty() {
+        } else if spheres > 0 {
             Ok((
                 CompareInput::Spheres {
                     name,
                     spheres: Spheres::from_set(&scene.spheres),
                 },
-                None,
+                note,
             ))
         } else {
             Err(Error::parameter("scene", "the scene has no primitives"))
