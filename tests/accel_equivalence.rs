@@ -240,3 +240,56 @@ fn grid_mailbox_tests_spanning_primitive_once() {
     assert_eq!(a.prim_tests, 1, "{a:?}");
     assert!(b.prim_tests >= 10, "{b:?}");
 }
+
+/// Unit squares on the integer planes of a 4x4x4 lattice, and axis-parallel rays that
+/// run exactly along lattice planes and edges (cell, voxel and split planes of the
+/// spatial structures coincide with or sit next to them), with both signed zeros.
+#[test]
+fn lattice_planes_and_edges() {
+    let mut corners = Vec::new();
+    for a in 0..3 {
+        let (u, v) = ((a + 1) % 3, (a + 2) % 3);
+        for k in 0..=4 {
+            for i in 0..4 {
+                for j in 0..4 {
+                    let p = |di: f32, dj: f32| {
+                        let mut q = Vec3::ZERO;
+                        q[a] = k as f32;
+                        q[u] = i as f32 + di;
+                        q[v] = j as f32 + dj;
+                        q
+                    };
+                    if (i + j + k) % 3 != 0 {
+                        corners.push([p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0)]);
+                        corners.push([p(0.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)]);
+                    }
+                }
+            }
+        }
+    }
+    let prims = Triangles::from_corners(&corners);
+    let mut rays = Vec::new();
+    let coords = [-0.5f32, 0.0, 0.5, 1.0, 2.0, 2.5, 4.0, 4.5];
+    for a in 0..3 {
+        for &x in &coords {
+            for &y in &coords {
+                for sign in [1.0f32, -1.0] {
+                    for zero in [0.0f32, -0.0] {
+                        let mut o = Vec3::splat(0.0);
+                        o[(a + 1) % 3] = x;
+                        o[(a + 2) % 3] = y;
+                        o[a] = if sign > 0.0 { -1.0 } else { 5.0 };
+                        let mut d = Vec3::splat(zero);
+                        d[a] = sign;
+                        rays.push(Ray::new(o, d));
+                        // starting inside, on a lattice plane
+                        o[a] = 2.0;
+                        rays.push(Ray::new(o, d));
+                    }
+                }
+            }
+        }
+    }
+    rays.extend(random_rays(&bounds_of(&prims), 3000, 11));
+    assert_matches_bruteforce("lattice", prims, &rays);
+}
