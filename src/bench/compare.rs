@@ -106,7 +106,9 @@ impl CompareInput {
             } else {
                 ("spheres", spheres, "triangles", tris)
             };
-            format!("note: the protocol runs over the scene's {n} {used}; its {m} {left} are left out")
+            format!(
+                "note: the protocol runs over the scene's {n} {used}; its {m} {left} are left out"
+            )
         });
         if tris > 0 && tris >= spheres {
             let positions = (0..scene.mesh.vertex_count() as u32)
