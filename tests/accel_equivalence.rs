@@ -293,3 +293,39 @@ fn lattice_planes_and_edges() {
     rays.extend(random_rays(&bounds_of(&prims), 3000, 11));
     assert_matches_bruteforce("lattice", prims, &rays);
 }
+
+/// Degenerate sets for every structure: one primitive, 10^4 identical triangles, a
+/// tilted plane of triangles (all coplanar, box not flat), and an axis-aligned plane
+/// (zero-thickness scene box), plus the empty set.
+#[test]
+fn degenerate_sets() {
+    let one = Triangles::from_corners(&[[Vec3::ZERO, Vec3::X, Vec3::Y]]);
+    let identical = Triangles::from_corners(&vec![[Vec3::ZERO, Vec3::X, Vec3::Y]; 10_000]);
+    let plane = |tilt: Vec3| {
+        let corners: Vec<[Vec3; 3]> = (0..900)
+            .map(|i| {
+                let (x, y) = ((i % 30) as f32 * 0.1, (i / 30) as f32 * 0.1);
+                let p = |u: f32, v: f32| Vec3::new(u, v, tilt.dot(Vec3::new(u, v, 0.0)));
+                [p(x, y), p(x + 0.1, y), p(x, y + 0.1)]
+            })
+            .collect();
+        Triangles::from_corners(&corners)
+    };
+    for (name, prims) in [
+        ("one", one),
+        ("identical", identical),
+        ("tilted plane", plane(Vec3::new(0.3, -0.7, 0.0))),
+        ("flat box", plane(Vec3::ZERO)),
+    ] {
+        let rays = random_rays(&bounds_of(&prims), 3000, 12);
+        assert_matches_bruteforce(name, prims, &rays);
+    }
+    for kind in AccelKind::ALL {
+        let empty = kind.build(Triangles::default());
+        let r = Ray::new(Vec3::ZERO, Vec3::X);
+        assert!(
+            empty.closest_hit(&r).is_none() && !empty.any_hit(&r),
+            "{kind}"
+        );
+    }
+}
