@@ -35,6 +35,13 @@ enum Command {
     /// sample pattern and eye/shadow split at a series of budgets; prints the table and
     /// the fitted log-log slopes, writes a CSV and an SVG plot.
     Converge(ConvergeArgs),
+    /// Every acceleration structure side by side on one scene (.toml) or mesh (.obj):
+    /// build time, memory, size, traversal work per primary ray, and Mrays/s of the
+    /// BENCHMARK.md workloads traced one ray at a time.
+    AccelCompare(AccelCompareArgs),
+    /// The lecture's table: build + render time of every structure on sphereflakes of
+    /// 10 to 66430 spheres, as ratios to the time at 10, with CSV and log-log SVG.
+    LectureTable(LectureTableArgs),
 }
 
 #[derive(clap::Args)]
@@ -65,6 +72,45 @@ struct ConvergeArgs {
     /// SVG plot, log-log RMSE against seconds.
     #[arg(long, default_value = "convergence.svg")]
     plot: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct AccelCompareArgs {
+    /// A TOML scene or an OBJ mesh.
+    scene: PathBuf,
+    #[arg(long, default_value_t = 256)]
+    width: u32,
+    #[arg(long, default_value_t = 256)]
+    height: u32,
+    /// Timed passes per workload (after one warm-up); the median is reported.
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Include brute force above 5000 primitives.
+    #[arg(long)]
+    include_bruteforce: bool,
+    /// Print one JSON object per line instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct LectureTableArgs {
+    #[arg(long, default_value_t = 128)]
+    width: u32,
+    #[arg(long, default_value_t = 128)]
+    height: u32,
+    /// Timed renders per figure; the fastest is kept.
+    #[arg(long, default_value_t = 2)]
+    reps: usize,
+    /// Brute force is extrapolated linearly once its predicted time exceeds this.
+    #[arg(long, default_value_t = 5.0)]
+    cap_seconds: f64,
+    /// Write the table as CSV.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Write a log-log plot of time against sphere count (SVG).
+    #[arg(long)]
+    svg: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -170,6 +216,8 @@ fn main() -> ExitCode {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),
         Command::Converge(args) => converge(args),
+        Command::AccelCompare(args) => accel_compare(args),
+        Command::LectureTable(args) => lecture_table(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -289,6 +337,67 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
         &args.plot,
         &format!("{}: RMSE against render time", args.scene.display()),
     )?;
+    Ok(())
+}
+
+fn accel_compare(args: AccelCompareArgs) -> packet_render::Result<()> {
+    use packet_render::bench::compare;
+    let (input, note) = compare::CompareInput::load(&args.scene)?;
+    let opts = compare::CompareOptions {
+        width: args.width,
+        height: args.height,
+        reps: args.reps,
+        include_bruteforce: args.include_bruteforce,
+    };
+    if !args.json {
+        println!(
+            "{}: {} primitives; {}x{}; single-ray traversal, {} threads; Mrays/s median of {} passes",
+            input.name(),
+            input.primitives(),
+            opts.width,
+            opts.height,
+            rayon::current_num_threads(),
+            opts.reps
+        );
+        if let Some(n) = &note {
+            println!("{n}");
+        }
+        println!("{}", compare::table_header());
+    }
+    compare::compare(&input, &opts, |row| {
+        if args.json {
+            println!("{}", serde_json::to_string(row).expect("row serialises"));
+        } else {
+            println!("{}", compare::table_row(row));
+        }
+    })?;
+    Ok(())
+}
+
+fn lecture_table(args: LectureTableArgs) -> packet_render::Result<()> {
+    use packet_render::bench::lecture;
+    let opts = lecture::LectureOptions {
+        width: args.width,
+        height: args.height,
+        reps: args.reps,
+        cap_seconds: args.cap_seconds,
+        csv: args.csv,
+        svg: args.svg,
+    };
+    let rows = lecture::run(&opts, |r| {
+        eprintln!(
+            "{:<10} {:>6} spheres: {:>10.1} ms{}",
+            r.structure,
+            r.spheres,
+            r.total_ms,
+            if r.extrapolated {
+                " (extrapolated)"
+            } else {
+                ""
+            }
+        )
+    })?;
+    print!("{}", lecture::markdown(&rows));
     Ok(())
 }
 

@@ -242,3 +242,66 @@ fn bench_prints_the_protocol_fields_and_modes_agree() {
     }
     assert!(rows[0]["hits_or_occluded"].as_u64().unwrap() > 0);
 }
+
+#[test]
+fn accel_compare_prints_one_json_row_per_structure_with_equal_checksums() {
+    let o = run(&[
+        "accel-compare",
+        &scene("meshes/gem.obj"),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--reps",
+        "1",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect();
+    let names: Vec<&str> = rows
+        .iter()
+        .map(|r| r["structure"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "bruteforce",
+            "bvh2",
+            "bvh4",
+            "grid",
+            "grid-nomailbox",
+            "octree",
+            "kdtree"
+        ]
+    );
+    for r in &rows {
+        assert_eq!(r["primary_hits"], rows[0]["primary_hits"], "{r}");
+        assert_eq!(r["shadow_occluded"], rows[0]["shadow_occluded"], "{r}");
+    }
+}
+
+#[test]
+fn render_accepts_the_spatial_structures() {
+    let dir = tmp_dir("spatial");
+    for accel in ["grid", "octree", "kdtree"] {
+        let out = dir.join(format!("{accel}.png"));
+        let o = run(&[
+            "render",
+            &scene("sphereflake.toml"),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--accel",
+            accel,
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{accel}: {}", stderr(&o));
+        assert!(out.exists());
+    }
+}

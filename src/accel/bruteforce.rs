@@ -1,4 +1,4 @@
-use super::{Accel, AccelInfo, Primitives};
+use super::{Accel, AccelInfo, Primitives, TraversalCounts};
 use crate::geometry::{Hit, Ray, RayQuery};
 
 /// Tests every primitive: the reference every other structure is checked against.
@@ -36,6 +36,18 @@ impl<P: Primitives> Accel for BruteForce<P> {
             return false;
         };
         (0..self.prims.count()).any(|i| self.prims.intersect(i, &q, q.tmax).is_some())
+    }
+
+    fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
+        let n = if ray.is_valid() {
+            self.prims.count() as u64
+        } else {
+            0
+        };
+        Some(TraversalCounts {
+            nodes: (n > 0) as u64,
+            prim_tests: n,
+        })
     }
 
     fn info(&self) -> AccelInfo {

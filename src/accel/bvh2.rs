@@ -1,4 +1,4 @@
-use super::{Accel, AccelInfo, Primitives};
+use super::{Accel, AccelInfo, Primitives, TraversalCounts};
 use crate::geometry::{Aabb, Hit, Ray, RayQuery};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -585,6 +585,16 @@ impl<P: Primitives> Bvh2<P> {
 
     /// Closest hit on a prepared ray, nearer child first.
     pub fn closest_hit_query(&self, q: &RayQuery) -> Option<Hit> {
+        self.closest_hit_impl::<false>(q, &mut TraversalCounts::default())
+    }
+
+    /// The closest-hit traversal; `COUNT` adds node visits and primitive tests to `counts`.
+    #[inline(always)]
+    fn closest_hit_impl<const COUNT: bool>(
+        &self,
+        q: &RayQuery,
+        counts: &mut TraversalCounts,
+    ) -> Option<Hit> {
         let mut tmax = q.tmax;
         let mut best: Option<Hit> = None;
         self.node_entry(0, q, tmax)?;
@@ -592,9 +602,11 @@ impl<P: Primitives> Bvh2<P> {
         let mut sp = 0;
         let mut node = 0usize;
         loop {
+            counts.node::<COUNT>();
             let n = &self.nodes[node];
             if n.is_leaf() {
                 for k in n.first as usize..(n.first + n.count) as usize {
+                    counts.prim::<COUNT>();
                     if let Some(h) = self.prims.intersect(k, q, tmax) {
                         tmax = h.t;
                         best = Some(Hit {
@@ -690,6 +702,14 @@ impl<P: Primitives> Accel for Bvh2<P> {
 
     fn any_hit(&self, ray: &Ray) -> bool {
         RayQuery::new(ray).is_some_and(|q| self.any_hit_query(&q))
+    }
+
+    fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
+        let mut counts = TraversalCounts::default();
+        if let Some(q) = RayQuery::new(ray) {
+            self.closest_hit_impl::<true>(&q, &mut counts);
+        }
+        Some(counts)
     }
 
     fn info(&self) -> AccelInfo {

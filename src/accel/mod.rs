@@ -8,14 +8,22 @@
 mod bruteforce;
 mod bvh2;
 mod bvh4;
+mod grid;
+mod kdtree;
 mod moving;
+mod octree;
 mod primitives;
+pub mod spatial;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvh4::{Bvh4, Bvh4Node, PACKET_MIN_ACTIVE};
+pub use grid::{Grid, GridOptions};
+pub use kdtree::{KdNode, KdTree, KdTreeOptions};
 pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};
+pub use octree::{Octree, OctreeNode, OctreeOptions};
 pub use primitives::{Primitives, Spheres, Triangles};
+pub use spatial::TraversalCounts;
 
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray};
@@ -48,6 +56,13 @@ pub trait Accel: Send + Sync {
 
     /// What was built and what it cost.
     fn info(&self) -> AccelInfo;
+
+    /// The closest-hit traversal's work for one ray (node visits, primitive tests), from
+    /// a counting twin of the traversal so the normal path pays nothing; `None` where a
+    /// structure has no counting twin.
+    fn traversal_counts(&self, _ray: &Ray) -> Option<TraversalCounts> {
+        None
+    }
 }
 
 /// Build statistics of one structure.
@@ -71,17 +86,29 @@ pub enum AccelKind {
     BruteForce,
     Bvh2,
     Bvh4,
+    Grid,
+    Octree,
+    KdTree,
 }
 
 impl AccelKind {
-    pub const ALL: &'static [AccelKind] =
-        &[AccelKind::BruteForce, AccelKind::Bvh2, AccelKind::Bvh4];
+    pub const ALL: &'static [AccelKind] = &[
+        AccelKind::BruteForce,
+        AccelKind::Bvh2,
+        AccelKind::Bvh4,
+        AccelKind::Grid,
+        AccelKind::Octree,
+        AccelKind::KdTree,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             AccelKind::BruteForce => "bruteforce",
             AccelKind::Bvh2 => "bvh2",
             AccelKind::Bvh4 => "bvh4",
+            AccelKind::Grid => "grid",
+            AccelKind::Octree => "octree",
+            AccelKind::KdTree => "kdtree",
         }
     }
 
@@ -91,6 +118,9 @@ impl AccelKind {
             AccelKind::BruteForce => Box::new(BruteForce::new(prims)),
             AccelKind::Bvh2 => Box::new(Bvh2::build(prims)),
             AccelKind::Bvh4 => Box::new(Bvh4::build(prims)),
+            AccelKind::Grid => Box::new(Grid::build(prims)),
+            AccelKind::Octree => Box::new(Octree::build(prims)),
+            AccelKind::KdTree => Box::new(KdTree::build(prims)),
         }
     }
 }

@@ -18,6 +18,13 @@ pub trait Primitives: Send + Sync + Sized {
     fn permute(&self, order: &[u32]) -> Self;
     /// Bytes of primitive data held.
     fn memory_bytes(&self) -> usize;
+    /// Whether primitive `i` may overlap box `b`: false only if it certainly does not.
+    /// Spatial subdivisions use it to assign primitives to cells more tightly than by
+    /// their bounds; the default answers with the bounds.
+    fn overlaps_box(&self, i: usize, b: &Aabb) -> bool {
+        let p = self.bounds(i);
+        p.min.cmple(b.max).all() && b.min.cmple(p.max).all()
+    }
     /// The set as triangles, for structures with packed SIMD triangle leaves.
     fn as_triangles(&self) -> Option<&Triangles> {
         None
@@ -86,6 +93,10 @@ impl Primitives for Triangles {
     fn as_triangles(&self) -> Option<&Triangles> {
         Some(self)
     }
+
+    fn overlaps_box(&self, i: usize, b: &Aabb) -> bool {
+        super::spatial::triangle_overlaps_box(self.v0[i], self.v1[i], self.v2[i], b)
+    }
 }
 
 /// Spheres: centres and radii.
@@ -136,5 +147,9 @@ impl Primitives for Spheres {
 
     fn memory_bytes(&self) -> usize {
         self.radius.len() * 16
+    }
+
+    fn overlaps_box(&self, i: usize, b: &Aabb) -> bool {
+        super::spatial::sphere_overlaps_box(self.center[i], self.radius[i], b)
     }
 }

@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use glam::Vec3;
-use packet_render::accel::{Spheres, Triangles};
+use packet_render::accel::Triangles;
 use packet_render::geometry::{Aabb, Ray};
 
 /// splitmix64: small, fast, and good enough for test inputs.
@@ -108,14 +108,6 @@ pub fn triangle_soup(n: usize, seed: u64) -> Triangles {
         })
         .collect();
     Triangles::from_corners(&corners)
-}
-
-/// The sphereflake of `scene::procedural` at `level` (1 + 9 + ... + 9^level spheres).
-pub fn flake_spheres(level: u32) -> Spheres {
-    let mut b = packet_render::scene::SceneBuilder::new();
-    let m = b.add_material(packet_render::scene::Material::default());
-    packet_render::scene::procedural::sphereflake(&mut b, level, Vec3::ZERO, 1.0, m);
-    Spheres::from_set(&b.spheres)
 }
 
 /// The tessellated mesh of `scene::procedural` with about `n` triangles.

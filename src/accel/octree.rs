@@ -1,0 +1,392 @@
+//! Octree: recursive 8-way subdivision of the scene box at its centre, traversed front
+//! to back (children in the order the ray enters them, a 2x2x2 DDA per node, in the
+//! spirit of Revelles, Ureña & Lastra's parametric traversal, 2000).
+//!
+//! Primitives straddling child boundaries go into *every* child they overlap (so the
+//! leaves partition space and the traversal can stop at the first leaf that holds a
+//! hit); a node stays a leaf when it has at most `max_leaf` primitives, is at
+//! `max_depth`, or when splitting would multiply its references by more than
+//! `max_duplication` (primitives that all straddle the centre, e.g. 10^4 identical
+//! triangles, would otherwise be copied into all eight children at every level).
+
+use super::spatial::{TraversalCounts, boxes_overlap, clip, conservative_pad, grown, moves_along};
+use super::{Accel, AccelInfo, Primitives};
+use crate::geometry::{Aabb, Hit, Ray, RayQuery};
+use glam::Vec3;
+use std::time::Instant;
+
+/// Build limits of an [`Octree`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OctreeOptions {
+    pub max_depth: u32,
+    pub max_leaf: usize,
+    /// A node is split only if its children hold at most this many times its references.
+    pub max_duplication: f32,
+}
+
+impl Default for OctreeOptions {
+    fn default() -> Self {
+        OctreeOptions {
+            max_depth: 20,
+            max_leaf: 8,
+            max_duplication: 3.0,
+        }
+    }
+}
+
+/// 8 bytes: an interior node's eight children are contiguous from `first`; a leaf's
+/// primitive ids are `refs[first..first + count]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OctreeNode {
+    pub first: u32,
+    /// Primitive count of a leaf; `INTERIOR` for an interior node.
+    pub count: u32,
+}
+
+const INTERIOR: u32 = u32::MAX;
+const _: () = assert!(std::mem::size_of::<OctreeNode>() == 8);
+
+pub struct Octree<P: Primitives> {
+    prims: P,
+    nodes: Vec<OctreeNode>,
+    refs: Vec<u32>,
+    /// Root box: a cube around the scene bounds grown by the assignment margin.
+    bounds: Aabb,
+    info: AccelInfo,
+}
+
+struct Builder<'a, P: Primitives> {
+    prims: &'a P,
+    bounds: Vec<Aabb>,
+    pad: f32,
+    opts: OctreeOptions,
+    nodes: Vec<OctreeNode>,
+    refs: Vec<u32>,
+    max_depth: u32,
+    leaves: usize,
+}
+
+/// Child `c`'s box: bit `a` of `c` selects the upper half along axis `a`.
+#[inline(always)]
+fn child_box(lo: Vec3, hi: Vec3, mid: Vec3, c: usize) -> (Vec3, Vec3) {
+    let mut clo = lo;
+    let mut chi = mid;
+    for a in 0..3 {
+        if c >> a & 1 == 1 {
+            clo[a] = mid[a];
+            chi[a] = hi[a];
+        }
+    }
+    (clo, chi)
+}
+
+impl<P: Primitives> Builder<'_, P> {
+    fn leaf(&mut self, node: usize, ids: &[u32]) {
+        self.nodes[node] = OctreeNode {
+            first: self.refs.len() as u32,
+            count: ids.len() as u32,
+        };
+        self.refs.extend_from_slice(ids);
+        self.leaves += 1;
+    }
+
+    fn build(&mut self, node: usize, lo: Vec3, hi: Vec3, ids: Vec<u32>, depth: u32) {
+        self.max_depth = self.max_depth.max(depth);
+        if ids.len() <= self.opts.max_leaf || depth >= self.opts.max_depth {
+            return self.leaf(node, &ids);
+        }
+        let mid = 0.5 * (lo + hi);
+        let mut children: Vec<Vec<u32>> = Vec::with_capacity(8);
+        let mut total = 0usize;
+        for c in 0..8 {
+            let (clo, chi) = child_box(lo, hi, mid, c);
+            let region = grown(&Aabb::new(clo, chi), self.pad);
+            let list: Vec<u32> = ids
+                .iter()
+                .copied()
+                .filter(|&i| {
+                    boxes_overlap(&self.bounds[i as usize], &region)
+                        && self.prims.overlaps_box(i as usize, &region)
+                })
+                .collect();
+            total += list.len();
+            children.push(list);
+        }
+        if total as f32 > self.opts.max_duplication * ids.len() as f32 {
+            return self.leaf(node, &ids);
+        }
+        drop(ids);
+        let first = self.nodes.len();
+        self.nodes[node] = OctreeNode {
+            first: first as u32,
+            count: INTERIOR,
+        };
+        self.nodes
+            .resize(first + 8, OctreeNode { first: 0, count: 0 });
+        for (c, list) in children.into_iter().enumerate() {
+            let (clo, chi) = child_box(lo, hi, mid, c);
+            self.build(first + c, clo, chi, list, depth + 1);
+        }
+    }
+}
+
+/// Mutable state of one ray's traversal.
+struct RayState {
+    tmax: f32,
+    best: Option<Hit>,
+    counts: TraversalCounts,
+}
+
+impl<P: Primitives> Octree<P> {
+    pub fn build(prims: P) -> Self {
+        Self::build_with(prims, OctreeOptions::default())
+    }
+
+    pub fn build_with(prims: P, opts: OctreeOptions) -> Self {
+        let start = Instant::now();
+        let n = prims.count();
+        let bounds: Vec<Aabb> = (0..n).map(|i| prims.bounds(i)).collect();
+        let scene = bounds.iter().fold(Aabb::EMPTY, |b, p| b.union(p));
+        let pad = conservative_pad(&scene);
+        // A cube around the scene: a flat scene's plane is then split by the root's
+        // middle plane only, not at every level (which would double its references each
+        // level).
+        let root = if n == 0 {
+            Aabb::EMPTY
+        } else {
+            let half = Vec3::splat(0.5 * scene.extent().max_element() + pad);
+            Aabb::new(scene.center() - half, scene.center() + half)
+        };
+        let mut b = Builder {
+            prims: &prims,
+            bounds,
+            pad,
+            opts,
+            nodes: vec![OctreeNode { first: 0, count: 0 }],
+            refs: Vec::new(),
+            max_depth: 0,
+            leaves: 0,
+        };
+        if n > 0 {
+            b.build(0, root.min, root.max, (0..n as u32).collect(), 0);
+        } else {
+            b.leaves = 1;
+        }
+        let (nodes, refs, max_depth, leaves) = (b.nodes, b.refs, b.max_depth, b.leaves);
+        let info = AccelInfo {
+            name: "octree",
+            primitives: n,
+            build_ms: start.elapsed().as_secs_f64() * 1e3,
+            nodes: nodes.len(),
+            leaves,
+            max_depth: max_depth as usize,
+            memory_bytes: nodes.len() * 8 + refs.len() * 4 + prims.memory_bytes(),
+            sah_cost: 0.0,
+        };
+        Octree {
+            prims,
+            nodes,
+            refs,
+            bounds: root,
+            info,
+        }
+    }
+
+    /// Total primitive references.
+    pub fn references(&self) -> usize {
+        self.refs.len()
+    }
+
+    fn query<const COUNT: bool, const ANY: bool>(
+        &self,
+        q: &RayQuery,
+    ) -> (Option<Hit>, TraversalCounts) {
+        let mut s = RayState {
+            tmax: q.tmax,
+            best: None,
+            counts: TraversalCounts::default(),
+        };
+        if let Some((t0, t1)) = clip(&self.bounds, q) {
+            self.visit::<COUNT, ANY>(0, self.bounds.min, self.bounds.max, t0, t1, q, &mut s);
+        }
+        (s.best, s.counts)
+    }
+
+    /// Visits the subtree of `node` (box `lo..hi`) over the ray interval `[t0, t1]`.
+    /// Returns true when the traversal is finished: any hit found (`ANY`), or a closest
+    /// hit nearer than the exit of this subtree's last visited child.
+    #[allow(clippy::too_many_arguments)]
+    fn visit<const COUNT: bool, const ANY: bool>(
+        &self,
+        node: usize,
+        lo: Vec3,
+        hi: Vec3,
+        t0: f32,
+        t1: f32,
+        q: &RayQuery,
+        s: &mut RayState,
+    ) -> bool {
+        s.counts.node::<COUNT>();
+        let n = self.nodes[node];
+        if n.count != INTERIOR {
+            for &id in &self.refs[n.first as usize..(n.first + n.count) as usize] {
+                s.counts.prim::<COUNT>();
+                if let Some(h) = self.prims.intersect(id as usize, q, s.tmax) {
+                    s.best = Some(Hit {
+                        t: h.t,
+                        prim: id,
+                        u: h.u,
+                        v: h.v,
+                    });
+                    if ANY {
+                        return true;
+                    }
+                    s.tmax = h.t;
+                }
+            }
+            return false;
+        }
+        // Which half the ray is in at t0 along each axis, and when it crosses the middle.
+        let mid = 0.5 * (lo + hi);
+        let mut child = 0usize;
+        let mut cross = [f32::INFINITY; 3];
+        for a in 0..3 {
+            let upper = if moves_along(q, a) {
+                let tm = (mid[a] - q.origin[a]) * q.inv_dir[a];
+                if tm > t0 {
+                    cross[a] = tm;
+                    q.dir[a] < 0.0
+                } else {
+                    q.dir[a] > 0.0
+                }
+            } else {
+                q.origin[a] >= mid[a]
+            };
+            child |= (upper as usize) << a;
+        }
+        let mut t = t0;
+        loop {
+            let axis = if cross[0] <= cross[1] && cross[0] <= cross[2] {
+                0
+            } else if cross[1] <= cross[2] {
+                1
+            } else {
+                2
+            };
+            let exit = cross[axis].min(t1);
+            let (clo, chi) = child_box(lo, hi, mid, child);
+            if self.visit::<COUNT, ANY>(n.first as usize + child, clo, chi, t, exit, q, s) {
+                return true;
+            }
+            // Closest hit before the next child's entry: nothing later can be nearer.
+            if s.tmax <= exit {
+                return true;
+            }
+            if cross[axis] >= t1 {
+                return false;
+            }
+            child ^= 1 << axis;
+            cross[axis] = f32::INFINITY;
+            t = exit;
+        }
+    }
+
+    /// Closest hit with traversal counts.
+    pub fn closest_hit_counted(&self, ray: &Ray) -> (Option<Hit>, TraversalCounts) {
+        match RayQuery::new(ray) {
+            Some(q) => self.query::<true, false>(&q),
+            None => (None, TraversalCounts::default()),
+        }
+    }
+}
+
+impl<P: Primitives> Accel for Octree<P> {
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.query::<false, false>(&RayQuery::new(ray)?).0
+    }
+
+    fn any_hit(&self, ray: &Ray) -> bool {
+        RayQuery::new(ray).is_some_and(|q| self.query::<false, true>(&q).0.is_some())
+    }
+
+    fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
+        Some(self.closest_hit_counted(ray).1)
+    }
+
+    fn info(&self) -> AccelInfo {
+        self.info.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{BruteForce, Triangles};
+
+    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [Vec3; 3] {
+        [Vec3::from(a), Vec3::from(b), Vec3::from(c)]
+    }
+
+    #[test]
+    fn empty_and_single() {
+        let o = Octree::build(Triangles::default());
+        assert!(o.closest_hit(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
+        assert!(!o.any_hit(&Ray::new(Vec3::ZERO, Vec3::X)));
+        let one = Octree::build(Triangles::from_corners(&[tri(
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+        )]));
+        let h = one
+            .closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::Z))
+            .unwrap();
+        assert_eq!((h.prim, h.t), (0, 2.0));
+        assert!(
+            one.closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::ZERO))
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn identical_triangles_terminate() {
+        let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        let o = Octree::build(Triangles::from_corners(&vec![t; 10_000]));
+        assert!(o.references() <= 3 * 10_000, "{} refs", o.references());
+        assert!(o.info.max_depth <= 20);
+        let h = o
+            .closest_hit(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
+            .unwrap();
+        assert_eq!(h.t, 1.0);
+    }
+
+    #[test]
+    fn flat_scene_box_and_coplanar_primitives() {
+        let corners: Vec<_> = (0..400)
+            .map(|i| {
+                let x = (i % 20) as f32;
+                let y = (i / 20) as f32;
+                tri([x, y, 0.0], [x + 1.0, y, 0.0], [x, y + 1.0, 0.0])
+            })
+            .collect();
+        let prims = Triangles::from_corners(&corners);
+        let o = Octree::build(prims.clone());
+        assert!(o.info.nodes > 1);
+        let bf = BruteForce::new(prims);
+        for i in 0..400 {
+            let org = Vec3::new(i as f32 * 0.05 - 0.5, (i % 13) as f32 * 1.5, 3.0);
+            for d in [
+                Vec3::new(0.1, 0.2, -1.0),
+                -Vec3::Z,
+                Vec3::new(0.3, 1.0, -1.0),
+            ] {
+                let r = Ray::new(org, d);
+                assert_eq!(
+                    o.closest_hit(&r).map(|h| h.t),
+                    bf.closest_hit(&r).map(|h| h.t)
+                );
+                let r = Ray::new(Vec3::new(org.x, org.y, 0.0), Vec3::new(d.x, d.y, -0.0));
+                assert_eq!(o.any_hit(&r), bf.any_hit(&r));
+            }
+        }
+    }
+}

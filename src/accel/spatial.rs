@@ -1,0 +1,218 @@
+//! Pieces shared by the spatial subdivisions (grid, octree, kd-tree): the conservative
+//! cell-assignment margin, ray/box clipping that returns the whole interval, traversal
+//! counters and the per-ray mailbox.
+//!
+//! Robustness rule of all three structures: the *hit* is always decided by the
+//! watertight primitive test with the ray's own strict interval; the structure only
+//! decides which primitives are tested. Cell, voxel and leaf regions are therefore
+//! grown by [`conservative_pad`] when primitives are assigned, so that a primitive whose
+//! surface lies within rounding distance of a region is in it, and the traversal may
+//! round cell boundaries either way without ever skipping a primitive the ray hits.
+
+use crate::geometry::{Aabb, RayQuery};
+use glam::Vec3;
+
+/// Traversal work of one ray: node (cell, voxel, BVH node) visits and primitive tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalCounts {
+    pub nodes: u64,
+    pub prim_tests: u64,
+}
+
+impl TraversalCounts {
+    #[inline(always)]
+    pub(crate) fn node<const COUNT: bool>(&mut self) {
+        if COUNT {
+            self.nodes += 1;
+        }
+    }
+
+    #[inline(always)]
+    pub(crate) fn prim<const COUNT: bool>(&mut self) {
+        if COUNT {
+            self.prim_tests += 1;
+        }
+    }
+}
+
+/// Margin by which regions are grown when primitives are assigned to them:
+/// `1e-5` of the scene's largest extent plus `1e-6` of its largest coordinate magnitude
+/// (so a small scene far from the origin still gets a margin above the f32 spacing of
+/// its coordinates). The traversal's rounding errors are of order `2^-23` of the
+/// coordinates and of the ray's distance to the scene, so this covers ray origins up to
+/// roughly a hundred scene diameters away.
+pub fn conservative_pad(bounds: &Aabb) -> f32 {
+    if bounds.is_empty() {
+        return 0.0;
+    }
+    let extent = bounds.extent().max_element();
+    let magnitude = bounds.min.abs().max(bounds.max.abs()).max_element();
+    (1e-5 * extent + 1e-6 * magnitude).max(1e-30)
+}
+
+/// `b` grown by `pad` on every side.
+#[inline]
+pub fn grown(b: &Aabb, pad: f32) -> Aabb {
+    Aabb::new(b.min - Vec3::splat(pad), b.max + Vec3::splat(pad))
+}
+
+/// Whether two boxes overlap (closed intervals).
+#[inline]
+pub fn boxes_overlap(a: &Aabb, b: &Aabb) -> bool {
+    a.min.cmple(b.max).all() && b.min.cmple(a.max).all()
+}
+
+/// The part `(enter, exit)` of the ray's interval inside `b`, or `None`.
+///
+/// Same plane selection as [`Aabb::intersect`] (by the sign of `inv_dir`, so `-0.0`
+/// picks the planes of a negative direction and an empty box is never entered), and the
+/// same NaN rule: a ray lying in a slab plane gives `0 * inf = NaN`, which `max`/`min`
+/// ignore, so the ray counts as inside that slab.
+#[inline]
+pub fn clip(b: &Aabb, q: &RayQuery) -> Option<(f32, f32)> {
+    let mut enter = q.tmin;
+    let mut exit = q.tmax;
+    for a in 0..3 {
+        let (near, far) = if q.inv_dir[a].is_sign_negative() {
+            (b.max[a], b.min[a])
+        } else {
+            (b.min[a], b.max[a])
+        };
+        enter = enter.max((near - q.origin[a]) * q.inv_dir[a]);
+        exit = exit.min((far - q.origin[a]) * q.inv_dir[a]);
+    }
+    (enter <= exit).then_some((enter, exit))
+}
+
+/// Whether the ray can be traversed along axis `a`: a zero (either sign) or subnormal
+/// direction component has an infinite reciprocal, and the ray is treated as parallel
+/// to that axis's planes (a subnormal component moves the ray by less than the
+/// assignment margin over any finite distance of a normal-sized direction).
+#[inline(always)]
+pub fn moves_along(q: &RayQuery, a: usize) -> bool {
+    q.inv_dir[a].is_finite() && q.dir[a] != 0.0
+}
+
+/// Per-ray mailbox (Amanatides & Woo 1987; Kirk & Arvo 1991): a small direct-mapped
+/// cache of the ids of the primitives this ray has already tested, carried on the
+/// traversal's stack. It needs no shared state, so any number of rays can run
+/// concurrently, and it costs 128 bytes per ray. A primitive is retested only if
+/// another id with the same low bits was tested in between (then the test is merely
+/// repeated; the answer is the same, since the ray's interval only shrinks).
+pub struct Mailbox {
+    ids: [u32; MAILBOX_SLOTS],
+}
+
+/// Slots of the mailbox (a power of two).
+pub const MAILBOX_SLOTS: usize = 32;
+
+impl Mailbox {
+    #[inline(always)]
+    pub fn new() -> Self {
+        Mailbox {
+            ids: [u32::MAX; MAILBOX_SLOTS],
+        }
+    }
+
+    /// True if `id` was tested already; otherwise records it and returns false.
+    #[inline(always)]
+    pub fn seen(&mut self, id: u32) -> bool {
+        let slot = &mut self.ids[id as usize & (MAILBOX_SLOTS - 1)];
+        if *slot == id {
+            true
+        } else {
+            *slot = id;
+            false
+        }
+    }
+}
+
+impl Default for Mailbox {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Conservative triangle/box overlap: the separating-axis test of Akenine-Möller
+/// ("Fast 3D Triangle-Box Overlap Testing", JGT 2001): the box's three face normals,
+/// the triangle's normal and the nine edge cross products. Returns false only if one of
+/// the 13 axes separates them; callers pass a box already grown by the assignment
+/// margin, which is far above the rounding of these products.
+pub fn triangle_overlaps_box(v0: Vec3, v1: Vec3, v2: Vec3, b: &Aabb) -> bool {
+    let c = b.center();
+    let h = 0.5 * (b.max - b.min);
+    let (a, bb, cc) = (v0 - c, v1 - c, v2 - c);
+    // box face normals
+    let tmin = a.min(bb).min(cc);
+    let tmax = a.max(bb).max(cc);
+    if tmin.cmpgt(h).any() || tmax.cmplt(-h).any() {
+        return false;
+    }
+    let e = [bb - a, cc - bb, a - cc];
+    // nine edge cross products
+    for edge in e {
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            let l = axis.cross(edge);
+            let (p0, p1, p2) = (l.dot(a), l.dot(bb), l.dot(cc));
+            let r = h.x * l.x.abs() + h.y * l.y.abs() + h.z * l.z.abs();
+            if p0.min(p1).min(p2) > r || p0.max(p1).max(p2) < -r {
+                return false;
+            }
+        }
+    }
+    // triangle normal
+    let n = e[0].cross(e[1]);
+    let d = n.dot(a);
+    let r = h.x * n.x.abs() + h.y * n.y.abs() + h.z * n.z.abs();
+    d.abs() <= r || !d.is_finite()
+}
+
+/// Conservative sphere/box overlap (Arvo, "A Simple Method for Box-Sphere Intersection
+/// Testing", Graphics Gems 1990): squared distance from the centre to the box.
+pub fn sphere_overlaps_box(center: Vec3, radius: f32, b: &Aabb) -> bool {
+    let d = (b.min - center).max(Vec3::ZERO) + (center - b.max).max(Vec3::ZERO);
+    d.length_squared() <= radius * radius * (1.0 + 1e-5)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sat_accepts_touching_and_rejects_separated() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        // diagonal triangle whose bounds cover the box's corner region but which misses it
+        let far = [
+            Vec3::new(1.65, 0.0, 1.65),
+            Vec3::new(1.65, 1.65, 0.0),
+            Vec3::new(0.0, 1.65, 1.65),
+        ];
+        assert!(!triangle_overlaps_box(far[0], far[1], far[2], &b));
+        let through = [
+            Vec3::new(0.5, -1.0, 0.5),
+            Vec3::new(2.0, 2.0, 0.5),
+            Vec3::new(-1.0, 2.0, 0.5),
+        ];
+        assert!(triangle_overlaps_box(
+            through[0], through[1], through[2], &b
+        ));
+        // touching a face from outside
+        assert!(triangle_overlaps_box(
+            Vec3::new(1.0, 0.2, 0.2),
+            Vec3::new(2.0, 0.2, 0.2),
+            Vec3::new(1.0, 0.8, 0.8),
+            &b
+        ));
+        assert!(sphere_overlaps_box(Vec3::new(2.0, 0.5, 0.5), 1.0, &b));
+        assert!(!sphere_overlaps_box(Vec3::new(2.0, 2.0, 2.0), 1.0, &b));
+    }
+
+    #[test]
+    fn mailbox_remembers_recent_ids() {
+        let mut m = Mailbox::new();
+        assert!(!m.seen(7));
+        assert!(m.seen(7));
+        assert!(!m.seen(7 + MAILBOX_SLOTS as u32));
+        assert!(!m.seen(7));
+    }
+}
