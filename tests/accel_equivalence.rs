@@ -312,3 +312,35 @@ fn degenerate_sets() {
         );
     }
 }
+
+/// Rays aimed exactly at the shared vertices and edge midpoints of a closed mesh, from
+/// inside and from outside: every structure finds the brute-force hit, at the same t.
+/// (A box entry rounded above the current closest t once culled a neighbour triangle
+/// hit one ulp nearer.)
+#[test]
+fn rays_through_shared_vertices_and_edges() {
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material::default());
+    procedural::tessellated_mesh(&mut b, 3000, Vec3::new(0.3, -0.2, 0.1), 1.0, m);
+    let mesh = &b.mesh;
+    let prims = Triangles::from_mesh(mesh);
+    let mut targets: Vec<Vec3> = (0..mesh.vertex_count() as u32)
+        .map(|i| mesh.vertex(i))
+        .collect();
+    for t in 0..mesh.len() {
+        let [a, b, c] = mesh.corners(t);
+        targets.extend([0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)]);
+    }
+    let inside = Vec3::new(0.31, -0.18, 0.12);
+    let outside = Vec3::new(4.0, 3.0, 5.0);
+    let rays: Vec<Ray> = targets
+        .iter()
+        .flat_map(|&p| {
+            [
+                Ray::new(inside, (p - inside).normalize()),
+                Ray::new(outside, (p - outside).normalize()),
+            ]
+        })
+        .collect();
+    assert_matches_bruteforce("shared vertices and edges", prims, &rays);
+}

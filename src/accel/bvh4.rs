@@ -337,8 +337,9 @@ impl NodeRay {
         let f = |plane: usize, a: usize| (F4::from_array(p[plane]) - self.o[a]) * self.inv_far[a];
         let enter =
             d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
-        let exit = f(self.far[0], 0)
-            .minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(F4::splat(tmax))));
+        let exit = f(self.far[0], 0).minps(
+            f(self.far[1], 1).minps(f(self.far[2], 2).minps(F4::splat(tmax * ROBUST_FAR_SCALE))),
+        );
         (enter, enter.le(exit).bitmask())
     }
 }
@@ -395,7 +396,7 @@ impl<P: Primitives> Bvh4<P> {
                 let Some((r, d)) = stack.pop() else {
                     return best;
                 };
-                if d <= tmax {
+                if d <= tmax * ROBUST_FAR_SCALE {
                     cur = r;
                     break;
                 }
@@ -565,7 +566,7 @@ impl<P: Primitives> Bvh4<P> {
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
         loop {
-            let active = mask & cur_enter.le(tmax).bitmask();
+            let active = mask & cur_enter.le(tmax * L::splat(ROBUST_FAR_SCALE)).bitmask();
             if active == 0 {
                 // culled: every lane has a closer hit than this subtree's entry
             } else if active.count_ones() < PACKET_MIN_ACTIVE {
@@ -721,7 +722,8 @@ impl<P: Primitives> Bvh4<P> {
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
         loop {
-            let active = mask & !occluded & cur_enter.le(p.tmax).bitmask();
+            let active =
+                mask & !occluded & cur_enter.le(p.tmax * L::splat(ROBUST_FAR_SCALE)).bitmask();
             if active == 0 {
             } else if active.count_ones() < PACKET_MIN_ACTIVE {
                 let mut m = active;
@@ -816,7 +818,9 @@ impl<L: Lanes> PacketRays<L> {
         let f = |plane: usize, a: usize| rel(plane, a) * self.inv_far[a];
         let enter =
             d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
-        let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tmax)));
+        let exit = f(self.far[0], 0).minps(
+            f(self.far[1], 1).minps(f(self.far[2], 2).minps(tmax * L::splat(ROBUST_FAR_SCALE))),
+        );
         (enter, enter.le(exit).bitmask())
     }
 }

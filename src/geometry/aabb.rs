@@ -93,7 +93,10 @@ impl Aabb {
     #[inline]
     pub fn intersect(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
         let mut enter = tmin;
-        let mut exit = tmax;
+        // The current closest hit is scaled like the far planes: an entry distance that
+        // rounds above a hit it actually precedes must not cull the box (it would hide a
+        // hit one ulp nearer, on the neighbour across a shared edge).
+        let mut exit = tmax * ROBUST_FAR_SCALE;
         for a in 0..3 {
             let (near, far) = if inv_dir[a].is_sign_negative() {
                 (self.max[a], self.min[a])
