@@ -13,7 +13,7 @@
 use super::{RenderOptions, RenderOutput};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::Film;
-use crate::geometry::{Ray, offset_ray_origin};
+use crate::geometry::{Ray, offset_ray_origin_scaled};
 use crate::scene::{Light, Material, Scene};
 use crate::stats::{RayCounts, ms_since};
 use glam::Vec3;
@@ -86,6 +86,9 @@ pub struct SurfaceInteraction {
     pub n_shading: Vec3,
     pub material: u32,
     pub front_face: bool,
+    /// Largest |coordinate| of the primitive (corners, or centre plus radius): the
+    /// scale of the rounding error of `p`, which sizes the offset of secondary origins.
+    pub scale: f32,
 }
 
 impl SurfaceInteraction {
@@ -95,7 +98,7 @@ impl SurfaceInteraction {
     /// sphere) lands within a few ulps of the surface, which is what the
     /// Wächter-Binder offset of the next ray origin is sized for.
     pub fn new(scene: &Scene, ray: &Ray, hit: &SceneHit) -> Self {
-        let (p, ng, ns, material) = match hit.prim {
+        let (p, ng, ns, material, scale) = match hit.prim {
             PrimRef::Triangle(t) => {
                 let t = t as usize;
                 let mesh = &scene.mesh;
@@ -104,14 +107,16 @@ impl SurfaceInteraction {
                 let p = w * a + hit.u * b + hit.v * c;
                 let ng = mesh.geometric_normal(t);
                 let ns = mesh.shading_normal(t, hit.u, hit.v);
-                (p, ng, ns, mesh.material[t])
+                let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
+                (p, ng, ns, mesh.material[t], scale)
             }
             PrimRef::Sphere(s) => {
                 let s = s as usize;
                 let center = scene.spheres.center(s);
                 let radius = scene.spheres.radius[s];
                 let n = (ray.at(hit.t) - center).normalize_or_zero();
-                (center + radius * n, n, n, scene.spheres.material[s])
+                let scale = center.abs().max_element() + radius;
+                (center + radius * n, n, n, scene.spheres.material[s], scale)
             }
         };
         // A degenerate triangle or a hit at a sphere's centre has no normal; facing the
@@ -132,6 +137,7 @@ impl SurfaceInteraction {
             n_shading: ns,
             material,
             front_face,
+            scale,
         }
     }
 }
@@ -309,7 +315,7 @@ impl Tracer<'_> {
     /// (`albedo / π · E cosθ`, so that `ambient * albedo` and direct light share one
     /// scale) plus a Blinn-Phong highlight `ks (n·h)^shininess · E`.
     fn direct(&mut self, wo: Vec3, si: &SurfaceInteraction, m: &Material, albedo: Vec3) -> Vec3 {
-        let origin = offset_ray_origin(si.p, si.n_geometric);
+        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
         let mut l = Vec3::ZERO;
         for light in &self.scene.lights {
             let (wi, tmax, irradiance) = match *light {
@@ -384,7 +390,7 @@ impl Tracer<'_> {
             if throughput.max_element() >= self.min_contribution && weight != Vec3::ZERO {
                 self.rays.refraction += 1;
                 // Refraction leaves into the far side: offset against the facing normal.
-                let origin = offset_ray_origin(si.p, -si.n_geometric);
+                let origin = offset_ray_origin_scaled(si.p, -si.n_geometric, si.scale);
                 l += weight * self.radiance(&Ray::new(origin, t), depth + 1, throughput);
             }
         }
@@ -404,7 +410,7 @@ impl Tracer<'_> {
             return Vec3::ZERO;
         }
         self.rays.reflection += 1;
-        let origin = offset_ray_origin(si.p, si.n_geometric);
+        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
         self.radiance(&Ray::new(origin, dir), depth + 1, throughput)
     }
 }
