@@ -98,6 +98,9 @@ fn parse_accel(s: &str) -> Result<AccelKind, String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = packet_render::film::install_interrupt_handler() {
+        eprintln!("warning: {e}");
+    }
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),
