@@ -31,6 +31,16 @@ enum Command {
     /// Time the ray-throughput protocol of shared/BENCHMARK.md (Mrays/s for primary,
     /// shadow and diffuse rays) for each tracing mode, at 1 thread and all cores.
     Bench(BenchArgs),
+    /// Error of the f32 intersection kernels against an f64 reference (scales 1e-6..1e6,
+    /// offsets up to 1e7, grazing rays, tiny primitives).
+    Precision {
+        /// Rays per case.
+        #[arg(long, default_value_t = 2000)]
+        rays: usize,
+        /// Print one JSON object per line instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(clap::Args)]
@@ -104,6 +114,10 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),
+        Command::Precision { rays, json } => {
+            precision(rays, json);
+            Ok(())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -180,6 +194,22 @@ fn bench(args: BenchArgs) -> packet_render::Result<()> {
         }
     })?;
     Ok(())
+}
+
+fn precision(rays: usize, json: bool) {
+    use packet_render::bench::precision;
+    if !json {
+        println!("{}", precision::table_header());
+    }
+    for case in precision::standard_cases(rays) {
+        for row in precision::measure(&case) {
+            if json {
+                println!("{}", serde_json::to_string(&row).expect("row serialises"));
+            } else {
+                println!("{}", precision::table_row(&row));
+            }
+        }
+    }
 }
 
 /// A progress bar that stays hidden for the first second, so short renders print

@@ -288,3 +288,18 @@ fn interrupted_render_leaves_no_image_and_no_temp_file() {
     assert!(left.is_empty(), "left behind: {left:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn precision_prints_one_json_row_per_case_and_kernel() {
+    let o = run(&["precision", "--rays", "50", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(rows.len() >= 3 * 10, "{} rows", rows.len());
+    for r in &rows {
+        assert!(r["t_rel_max"].as_f64().unwrap() < 1e-3, "{r}");
+        assert!(["scalar", "bvh4-single", "bvh4-packet"].contains(&r["kernel"].as_str().unwrap()));
+    }
+}

@@ -9,6 +9,8 @@
 //! tiles (ordered as 4x4 blocks, so 16 consecutive rays are a 4x4 pixel block and 8 a
 //! 4x2 block), and bands of 8 rows are handed to threads dynamically.
 
+pub mod precision;
+
 use crate::accel::{Accel, AccelKind, Triangles};
 use crate::geometry::{Hit, Ray, orthonormal_basis};
 use glam::{DVec3, Vec3};
