@@ -269,7 +269,7 @@ fn interrupted_render_leaves_no_image_and_no_temp_file() {
         .spawn()
         .expect("binary starts");
     // Long enough for the handler to be installed and the render to be under way.
-    std::thread::sleep(std::time::Duration::from_millis(700));
+    std::thread::sleep(std::time::Duration::from_millis(1000));
     assert!(
         child.try_wait().unwrap().is_none(),
         "the render finished before it could be interrupted"
