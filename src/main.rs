@@ -42,6 +42,16 @@ enum Command {
     /// The lecture's table: build + render time of every structure on sphereflakes of
     /// 10 to 66430 spheres, as ratios to the time at 10, with CSV and log-log SVG.
     LectureTable(LectureTableArgs),
+    /// Error of the f32 intersection kernels against an f64 reference (scales 1e-6..1e6,
+    /// offsets up to 1e7, grazing rays, tiny primitives).
+    Precision {
+        /// Rays per case.
+        #[arg(long, default_value_t = 2000)]
+        rays: usize,
+        /// Print one JSON object per line instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(clap::Args)]
@@ -212,12 +222,19 @@ fn parse_accel(s: &str) -> Result<AccelKind, String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = packet_render::film::install_interrupt_handler() {
+        eprintln!("warning: {e}");
+    }
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Bench(args) => bench(args),
         Command::Converge(args) => converge(args),
         Command::AccelCompare(args) => accel_compare(args),
         Command::LectureTable(args) => lecture_table(args),
+        Command::Precision { rays, json } => {
+            precision(rays, json);
+            Ok(())
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -399,6 +416,22 @@ fn lecture_table(args: LectureTableArgs) -> packet_render::Result<()> {
     })?;
     print!("{}", lecture::markdown(&rows));
     Ok(())
+}
+
+fn precision(rays: usize, json: bool) {
+    use packet_render::bench::precision;
+    if !json {
+        println!("{}", precision::table_header());
+    }
+    for case in precision::standard_cases(rays) {
+        for row in precision::measure(&case) {
+            if json {
+                println!("{}", serde_json::to_string(&row).expect("row serialises"));
+            } else {
+                println!("{}", precision::table_row(&row));
+            }
+        }
+    }
 }
 
 /// A progress bar that stays hidden for the first second, so short renders print

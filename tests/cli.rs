@@ -305,3 +305,64 @@ fn render_accepts_the_spatial_structures() {
         assert!(out.exists());
     }
 }
+
+/// Ctrl-C during a long render: the process exits 130 and leaves neither the image nor
+/// a temporary file (the handler removes writes in progress; see film::output).
+#[test]
+fn interrupted_render_leaves_no_image_and_no_temp_file() {
+    let dir = tmp_dir("sigint");
+    let out = dir.join("slow.png");
+    let mut child = bin()
+        .args([
+            "render",
+            &scene("whitted.toml"),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "2048",
+            "--height",
+            "2048",
+            "--spp",
+            "256",
+            "--threads",
+            "1",
+            "-q",
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("binary starts");
+    // Long enough for the handler to be installed and the render to be under way.
+    std::thread::sleep(std::time::Duration::from_millis(1000));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the render finished before it could be interrupted"
+    );
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn precision_prints_one_json_row_per_case_and_kernel() {
+    let o = run(&["precision", "--rays", "50", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(rows.len() >= 3 * 10, "{} rows", rows.len());
+    for r in &rows {
+        assert!(r["t_rel_max"].as_f64().unwrap() < 1e-3, "{r}");
+        assert!(["scalar", "bvh4-single", "bvh4-packet"].contains(&r["kernel"].as_str().unwrap()));
+    }
+}

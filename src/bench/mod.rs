@@ -12,6 +12,7 @@
 pub mod compare;
 pub mod converge;
 pub mod lecture;
+pub mod precision;
 
 use crate::accel::{Accel, AccelKind, Triangles};
 use crate::geometry::{Hit, Ray, orthonormal_basis};

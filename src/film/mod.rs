@@ -5,7 +5,10 @@ mod output;
 use crate::error::{Error, Result};
 use glam::Vec3;
 
-pub use output::{SUPPORTED_EXTENSIONS, check_image_path, write_atomic};
+pub use output::{
+    INTERRUPTED_EXIT_CODE, SUPPORTED_EXTENSIONS, check_image_path, install_interrupt_handler,
+    write_atomic,
+};
 
 /// Linear RGB radiance per pixel, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]

@@ -8,6 +8,7 @@ use image::codecs::png::PngEncoder;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Extensions [`Film::save`] understands (lower case, compared case-insensitively).
@@ -82,7 +83,7 @@ pub fn write_atomic(
 ) -> Result<()> {
     let tmp = temp_path_for(path)?;
     let result = (|| {
-        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let file = create_in_flight(&tmp).map_err(|e| Error::io(path, e))?;
         let mut out = BufWriter::new(file);
         write(&mut out)?;
         let file = out
@@ -91,7 +92,7 @@ pub fn write_atomic(
         // Data on disk before the rename makes it visible, or a crash could leave a
         // complete-looking name over an empty file.
         file.sync_all().map_err(|e| Error::io(path, e))?;
-        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+        rename_in_flight(&tmp, path).map_err(|e| Error::io(path, e))
     })();
     match result {
         Ok(()) => {
@@ -101,9 +102,73 @@ pub fn write_atomic(
         Err(e) => {
             // The temp file may not exist (creation failed); nothing to report then.
             let _ = std::fs::remove_file(&tmp);
+            forget_in_flight(&tmp);
             Err(e)
         }
     }
+}
+
+/// Temporary files of writes in progress, so that an interrupt can remove them.
+///
+/// Creation and the final rename happen under this lock, and the interrupt handler
+/// takes it and never releases it (it exits the process while holding it). So either
+/// the handler runs first and no temporary file is ever created, or the file exists
+/// and is removed (the rename of a removed file then fails), or the rename completed
+/// and a complete image stays: never a truncated image and never a stray temp file.
+static IN_FLIGHT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn in_flight() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    IN_FLIGHT.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn create_in_flight(tmp: &Path) -> std::io::Result<File> {
+    let mut list = in_flight();
+    let file = File::create(tmp)?;
+    list.push(tmp.to_path_buf());
+    Ok(file)
+}
+
+fn rename_in_flight(tmp: &Path, path: &Path) -> std::io::Result<()> {
+    let mut list = in_flight();
+    let r = std::fs::rename(tmp, path);
+    list.retain(|p| p != tmp);
+    r
+}
+
+fn forget_in_flight(tmp: &Path) {
+    in_flight().retain(|p| p != tmp);
+}
+
+/// Removes the temporary files of the writes in progress that `which` selects and
+/// returns how many; those writes then fail at their rename.
+fn remove_in_flight(list: &mut Vec<PathBuf>, which: impl Fn(&Path) -> bool) -> usize {
+    let before = list.len();
+    list.retain(|p| {
+        let hit = which(p);
+        if hit {
+            let _ = std::fs::remove_file(p);
+        }
+        !hit
+    });
+    before - list.len()
+}
+
+/// Exit status of a process stopped by SIGINT (128 + 2), as shells report it.
+pub const INTERRUPTED_EXIT_CODE: i32 = 130;
+
+/// Installs a Ctrl-C (SIGINT/SIGTERM) handler that removes the temporary files of
+/// writes in progress and exits with [`INTERRUPTED_EXIT_CODE`]. Without it the default
+/// action kills the process mid-write and leaves a hidden `.name.tmp-*` file behind
+/// (the target itself is safe either way: it only ever appears by rename).
+pub fn install_interrupt_handler() -> Result<()> {
+    ctrlc::set_handler(|| {
+        let mut list = in_flight();
+        remove_in_flight(&mut list, |_| true);
+        // Exit while still holding the lock, so no write can start or finish.
+        std::mem::forget(list);
+        std::process::exit(INTERRUPTED_EXIT_CODE);
+    })
+    .map_err(|e| Error::parameter("interrupt handler", e.to_string()))
 }
 
 fn format_for(path: &Path) -> Result<Format> {
@@ -228,6 +293,29 @@ mod tests {
         // An encoder error (a 0x0 image) must not leave the temp file either.
         let empty = dir.join("empty.png");
         assert!(Film::new(0, 0).save(&empty).is_err());
+        assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn interrupt_during_a_write_leaves_nothing() {
+        // What the Ctrl-C handler does, run from inside the write: the temp file is
+        // removed, the rename then fails, and neither target nor temp file remain.
+        let dir = scratch_dir("interrupt");
+        let target = dir.join("out.png");
+        let mut removed = 0;
+        let err = write_atomic(&target, |out| {
+            use std::io::Write;
+            out.write_all(b"half an image").unwrap();
+            out.flush().unwrap();
+            assert_eq!(entries(&dir).len(), 1, "the temp file exists while writing");
+            // Only this test's file: other tests write concurrently.
+            removed = remove_in_flight(&mut in_flight(), |p| p.starts_with(&dir));
+            Ok(())
+        })
+        .unwrap_err();
+        assert!(removed >= 1, "the write in progress was not registered");
+        assert!(matches!(err, Error::Io { .. }), "{err}");
         assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -8,7 +8,7 @@ mod sphere;
 mod triangle;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
-pub use offset::{offset_ray_origin, orthonormal_basis};
+pub use offset::{offset_ray_origin, offset_ray_origin_scaled, orthonormal_basis};
 pub use ray::{Ray, RayQuery};
 pub use sphere::intersect_sphere;
 pub use triangle::{PrimHit, intersect_triangle, intersect_triangle_f64};

@@ -26,7 +26,7 @@ use super::sampling::{
 use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::Film;
-use crate::geometry::{Ray, offset_ray_origin};
+use crate::geometry::{Ray, offset_ray_origin_scaled};
 use crate::scene::{CameraFrame, LensFrame, Light, Material, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, ms_since};
 use glam::Vec3;
@@ -151,6 +151,9 @@ pub struct SurfaceInteraction {
     pub n_shading: Vec3,
     pub material: u32,
     pub front_face: bool,
+    /// Largest |coordinate| of the primitive (corners, or centre plus radius): the
+    /// scale of the rounding error of `p`, which sizes the offset of secondary origins.
+    pub scale: f32,
 }
 
 impl SurfaceInteraction {
@@ -160,7 +163,7 @@ impl SurfaceInteraction {
     /// sphere) lands within a few ulps of the surface, which is what the
     /// Wächter-Binder offset of the next ray origin is sized for.
     pub fn new(scene: &Scene, ray: &Ray, hit: &SceneHit) -> Self {
-        let (p, ng, ns, material) = match hit.prim {
+        let (p, ng, ns, material, scale) = match hit.prim {
             PrimRef::Triangle(t) => {
                 let t = t as usize;
                 let mesh = &scene.mesh;
@@ -169,14 +172,16 @@ impl SurfaceInteraction {
                 let p = w * a + hit.u * b + hit.v * c;
                 let ng = mesh.geometric_normal(t);
                 let ns = mesh.shading_normal(t, hit.u, hit.v);
-                (p, ng, ns, mesh.material[t])
+                let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
+                (p, ng, ns, mesh.material[t], scale)
             }
             PrimRef::Sphere(s) => {
                 let s = s as usize;
                 let center = scene.spheres.center(s);
                 let radius = scene.spheres.radius[s];
                 let n = (ray.at(hit.t) - center).normalize_or_zero();
-                (center + radius * n, n, n, scene.spheres.material[s])
+                let scale = center.abs().max_element() + radius;
+                (center + radius * n, n, n, scene.spheres.material[s], scale)
             }
             // Moving primitives are placed at the ray's time; translation leaves
             // normals unchanged.
@@ -188,14 +193,22 @@ impl SurfaceInteraction {
                 let p = w * a + hit.u * b + hit.v * c;
                 let ng = mesh.geometric_normal(t);
                 let ns = mesh.shading_normal(t, hit.u, hit.v);
-                (p, ng, ns, mesh.material[t])
+                let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
+                (p, ng, ns, mesh.material[t], scale)
             }
             PrimRef::MovingSphere(s) => {
                 let s = s as usize;
                 let center = scene.motion.sphere_center(s, ray.time);
                 let radius = scene.motion.spheres.radius[s];
                 let n = (ray.at(hit.t) - center).normalize_or_zero();
-                (center + radius * n, n, n, scene.motion.spheres.material[s])
+                let scale = center.abs().max_element() + radius;
+                (
+                    center + radius * n,
+                    n,
+                    n,
+                    scene.motion.spheres.material[s],
+                    scale,
+                )
             }
         };
         // A degenerate triangle or a hit at a sphere's centre has no normal; facing the
@@ -216,6 +229,7 @@ impl SurfaceInteraction {
             n_shading: ns,
             material,
             front_face,
+            scale,
         }
     }
 }
@@ -500,7 +514,7 @@ impl Tracer<'_> {
         m: &Material,
         albedo: Vec3,
     ) -> Vec3 {
-        let origin = offset_ray_origin(si.p, si.n_geometric);
+        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
         // A light below the surface (or below the shading normal) contributes nothing:
         // no shadow ray for it.
         let reflectance = |wi: Vec3| {
@@ -610,7 +624,7 @@ impl Tracer<'_> {
             reflect(d, si.n_geometric)
         });
         let dirs = self.lobe(depth, axis, m.gloss_exponent);
-        let origin = offset_ray_origin(si.p, si.n_geometric);
+        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
         let mut sum = Vec3::ZERO;
         for &dir in dirs.iter() {
             if dir.dot(si.n_geometric) <= 0.0 {
@@ -684,7 +698,7 @@ impl Tracer<'_> {
             let throughput = throughput * weight;
             if throughput.max_element() >= self.min_contribution && weight != Vec3::ZERO {
                 // Refraction leaves into the far side: offset against the facing normal.
-                let origin = offset_ray_origin(si.p, -si.n_geometric);
+                let origin = offset_ray_origin_scaled(si.p, -si.n_geometric, si.scale);
                 if m.is_translucent() {
                     let dirs = self.lobe(depth, t, m.translucency_exponent);
                     let mut sum = Vec3::ZERO;
@@ -723,7 +737,7 @@ impl Tracer<'_> {
             return Vec3::ZERO;
         }
         self.rays.reflection += 1;
-        let origin = offset_ray_origin(si.p, si.n_geometric);
+        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
         let mut r = Ray::new(origin, dir);
         r.time = time;
         self.radiance(&r, depth + 1, throughput)

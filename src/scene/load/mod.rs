@@ -5,7 +5,7 @@
 mod obj;
 mod toml_scene;
 
-pub use obj::{ObjMesh, load_obj, material_from_mtl};
+pub use obj::{ObjMesh, load_obj, load_obj_from_bytes, material_from_mtl};
 pub use toml_scene::{load_toml_scene, parse_toml_scene};
 
 use super::{Camera, Light, Scene, SceneBuilder};

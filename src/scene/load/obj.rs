@@ -40,7 +40,14 @@ impl ObjMesh {
 /// `(0, i, i + 1)`; points and lines are ignored.
 pub fn load_obj(path: &Path) -> Result<ObjMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = utf8_or_located_error(path, &bytes)?;
+    load_obj_from_bytes(&bytes, path)
+}
+
+/// Parses OBJ data already in memory, as [`load_obj`] does after reading the file:
+/// `path` names it in error messages, and MTL libraries are looked up beside it. The
+/// entry point of the `obj` fuzz target.
+pub fn load_obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh> {
+    let text = utf8_or_located_error(path, bytes)?;
     prescan_obj(path, text)?;
 
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();

@@ -522,6 +522,21 @@ impl<'a> Builder<'a> {
             .transpose()?;
         let mesh = load_obj(&resolved)?;
         print_warnings(&mesh.warnings);
+        // Finite vertices can overflow under a large scale or translation; say which
+        // mesh entry did it rather than leave it to the scene-wide check.
+        if let Some(p) = mesh
+            .positions
+            .iter()
+            .find(|p| !transform.transform_point3(**p).is_finite())
+        {
+            return Err(cx.at(
+                &def.file,
+                format!(
+                    "mesh `{}`: vertex {p} is not finite after scale, rotate and translate",
+                    def.file.get_ref()
+                ),
+            ));
+        }
         match &def.velocity {
             None => {
                 add_obj_mesh(&mut self.b, &mesh, transform, material);
