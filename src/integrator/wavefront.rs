@@ -39,7 +39,7 @@ use super::whitted::{
 };
 use crate::accel::{BatchScratch, SceneAccel, SceneHit};
 use crate::geometry::Ray;
-use crate::scene::Scene;
+use crate::scene::{Light, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
 use std::time::Instant;
@@ -52,7 +52,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
     render_tiles(
         scene,
         opts,
-        || Workspace::new(&pipeline),
+        || Workspace::new(&pipeline, scene),
         |ws, camera, tile| render_tile(scene, accel, opts, &pipeline, camera, ws, tile),
     )
 }
@@ -149,8 +149,11 @@ struct Sinks {
     /// Image index of each generated pixel, in generation order.
     pixel_index: Vec<u64>,
     next: [Option<RayQueue>; CHILD_KINDS],
-    shadow: Option<ShadowQueue>,
-    area_shadow: Option<ShadowQueue>,
+    /// One shadow queue per light, so that the rays of a packet converge on one light
+    /// (interleaving two lights' rays splits every packet by octant).
+    shadow: Vec<ShadowQueue>,
+    /// Whether each light is an area light (its queue is the area-shadow stage).
+    area: Vec<bool>,
     emitted: Emitted,
     rays: RayCounts,
     drawn: EffectSamplesDrawn,
@@ -172,7 +175,7 @@ struct Workspace {
 }
 
 impl Workspace {
-    fn new(p: &Pipeline) -> Self {
+    fn new(p: &Pipeline, scene: &Scene) -> Self {
         let queues = p.child_queues().map(|on| on.then(RayQueue::default));
         Workspace {
             samples: PixelSamples::default(),
@@ -184,8 +187,8 @@ impl Workspace {
                 acc: Vec::new(),
                 pixel_index: Vec::new(),
                 next: queues,
-                shadow: p.shadow.then(ShadowQueue::default),
-                area_shadow: p.area_shadow.then(ShadowQueue::default),
+                shadow: scene.lights.iter().map(|_| ShadowQueue::default()).collect(),
+                area: scene.lights.iter().map(Light::is_area).collect(),
                 emitted: Emitted::default(),
                 rays: RayCounts::default(),
                 drawn: EffectSamplesDrawn::default(),
@@ -363,12 +366,7 @@ fn shade_queue(
         );
         sinks.acc[slot as usize] += weight * out.local;
         for s in &out.shadow {
-            let q = if s.area {
-                &mut sinks.area_shadow
-            } else {
-                &mut sinks.shadow
-            };
-            let q = q.get_or_insert_with(ShadowQueue::default);
+            let q = &mut sinks.shadow[s.light as usize];
             q.rays.push(s.ray);
             q.slot.push(slot);
             q.contribution.push(weight * s.contribution);
@@ -393,11 +391,12 @@ fn trace_shadows(
     stages: &mut StageTimes,
 ) {
     let acc = &mut sinks.acc;
-    for (queue, stage) in [
-        (&mut sinks.shadow, &mut stages.shadow),
-        (&mut sinks.area_shadow, &mut stages.area_shadow),
-    ] {
-        let Some(q) = queue else { continue };
+    for (q, &area) in sinks.shadow.iter_mut().zip(&sinks.area) {
+        let stage = if area {
+            &mut stages.area_shadow
+        } else {
+            &mut stages.shadow
+        };
         if q.rays.is_empty() {
             continue;
         }

@@ -513,8 +513,9 @@ pub(crate) struct ShadowRay {
     /// Reflected radiance from this light sample, unoccluded (already divided by the
     /// number of samples of its light).
     pub contribution: Vec3,
-    /// Towards a point sampled on an area light (a separate queue in the wavefront).
-    pub area: bool,
+    /// Index of the light in `Scene::lights` (the wavefront keeps one queue per light,
+    /// so a packet of shadow rays converges on one light).
+    pub light: u32,
 }
 
 /// A reflected, refracted or lobe-sampled ray and the weight its radiance gets.
@@ -774,17 +775,18 @@ impl Shader<'_> {
             }
             Some(f)
         };
-        let mut shadow = |out: &mut Emitted, dir, tmax, contribution, area| {
+        let mut shadow = |out: &mut Emitted, dir, tmax, contribution, light| {
             let mut ray = Ray::segment(origin, dir, 0.0, tmax);
             ray.time = time;
             rays.shadow += 1;
             out.shadow.push(ShadowRay {
                 ray,
                 contribution,
-                area,
+                light,
             });
         };
-        for light in &self.scene.lights {
+        for (index, light) in self.scene.lights.iter().enumerate() {
+            let index = index as u32;
             let (wi, tmax, irradiance) = match *light {
                 Light::Point {
                     position,
@@ -822,14 +824,14 @@ impl Shader<'_> {
                             continue;
                         };
                         let tmax = s.dist * AREA_SHADOW_TMAX_SCALE;
-                        shadow(out, s.wi, tmax, s.weight * f / n as f32, true);
+                        shadow(out, s.wi, tmax, s.weight * f / n as f32, index);
                     }
                     out.points = points;
                     continue;
                 }
             };
             if let Some(f) = reflectance(wi) {
-                shadow(out, wi, tmax, irradiance * f, false);
+                shadow(out, wi, tmax, irradiance * f, index);
             }
         }
     }
