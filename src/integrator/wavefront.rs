@@ -187,7 +187,11 @@ impl Workspace {
                 acc: Vec::new(),
                 pixel_index: Vec::new(),
                 next: queues,
-                shadow: scene.lights.iter().map(|_| ShadowQueue::default()).collect(),
+                shadow: scene
+                    .lights
+                    .iter()
+                    .map(|_| ShadowQueue::default())
+                    .collect(),
                 area: scene.lights.iter().map(Light::is_area).collect(),
                 emitted: Emitted::default(),
                 rays: RayCounts::default(),
