@@ -4,9 +4,9 @@
 
 use crate::accel::{AccelInfo, AccelKind, SceneAccel};
 use crate::error::{Error, Result};
-use crate::integrator::{self, FilterKind, RenderOptions, SamplerKind};
+use crate::integrator::{FilterKind, IntegratorKind, RenderOptions, SamplerKind};
 use crate::scene::{self, SampleCounts, Scene};
-use crate::stats::{EffectSamplesDrawn, PhaseTimes, RayCounts, ms_since};
+use crate::stats::{EffectSamplesDrawn, PhaseTimes, RayCounts, StageTimes, ms_since};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -35,6 +35,7 @@ pub struct RenderJob {
     pub output: PathBuf,
     pub overrides: Overrides,
     pub accel: AccelKind,
+    pub integrator: IntegratorKind,
     pub seed: u64,
     /// Worker threads; 0 means all cores.
     pub threads: usize,
@@ -54,11 +55,16 @@ pub struct RenderReport {
     pub filter: FilterKind,
     pub threads: usize,
     pub seed: u64,
+    pub integrator: IntegratorKind,
     pub primitives: PrimitiveCounts,
     pub features: Vec<&'static str>,
     pub accel: Vec<AccelInfo>,
     pub rays: RayTotals,
     pub time_ms: PhaseTimes,
+    /// Time by stage (wavefront only), summed over threads; a stage the scene does not
+    /// need is absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stages_ms: Option<StageTimes>,
     /// All rays traced per second of render time, in millions.
     pub mrays_per_s: f64,
     /// Samples whose radiance was NaN or infinite (written as black).
@@ -111,7 +117,7 @@ impl RenderJob {
         let accel = SceneAccel::build(&scene, self.accel);
         time.build = ms_since(t);
 
-        let out = integrator::whitted::render(&scene, &accel, &opts);
+        let out = self.integrator.render(&scene, &accel, &opts);
         time.render = out.render_ms;
 
         let t = Instant::now();
@@ -130,6 +136,7 @@ impl RenderJob {
             filter: opts.filter,
             threads,
             seed: self.seed,
+            integrator: self.integrator,
             primitives: PrimitiveCounts {
                 triangles: scene.mesh.len(),
                 spheres: scene.spheres.len(),
@@ -143,6 +150,7 @@ impl RenderJob {
                 total,
             },
             time_ms: time,
+            stages_ms: out.stages_ms,
             mrays_per_s: total as f64 / (time.render.max(1e-6) * 1e3),
             nonfinite_samples: out.nonfinite_samples,
             samples_drawn: out.samples_drawn,
@@ -236,9 +244,24 @@ impl RenderReport {
             t.write,
             t.total()
         );
+        if let Some(st) = &self.stages_ms {
+            let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+            s += &format!(
+                "stages   camera {:.1}, trace {:.1}, shade {:.1}, shadow {}, area shadow {}, reflection {}, refraction {}, glossy {}, translucency {} (ms, all threads)\n",
+                st.camera,
+                st.trace,
+                st.shade,
+                opt(st.shadow),
+                opt(st.area_shadow),
+                opt(st.reflection),
+                opt(st.refraction),
+                opt(st.glossy),
+                opt(st.translucency)
+            );
+        }
         s += &format!(
-            "speed    {:.2} Mrays/s on {} threads\n",
-            self.mrays_per_s, self.threads
+            "speed    {:.2} Mrays/s on {} threads, {} integrator\n",
+            self.mrays_per_s, self.threads, self.integrator
         );
         if self.nonfinite_samples > 0 {
             s += &format!(

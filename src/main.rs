@@ -173,6 +173,9 @@ struct RenderArgs {
     /// Acceleration structure.
     #[arg(long, default_value = "bvh4", value_parser = parse_accel)]
     accel: AccelKind,
+    /// Integrator: `whitted` (recursive reference) or `wavefront` (ray queues, packets).
+    #[arg(long, default_value = "whitted", value_parser = parse_integrator)]
+    integrator: packet_render::integrator::IntegratorKind,
     /// Seed of the per-pixel random streams (same seed, same image, any thread count).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -213,6 +216,10 @@ fn parse_sampler(s: &str) -> Result<packet_render::integrator::SamplerKind, Stri
 }
 
 fn parse_filter(s: &str) -> Result<packet_render::integrator::FilterKind, String> {
+    s.parse().map_err(|e: packet_render::Error| e.to_string())
+}
+
+fn parse_integrator(s: &str) -> Result<packet_render::integrator::IntegratorKind, String> {
     s.parse().map_err(|e: packet_render::Error| e.to_string())
 }
 
@@ -262,6 +269,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             filter: args.sampling.filter,
         },
         accel: args.accel,
+        integrator: args.integrator,
         seed: args.seed,
         threads: args.threads,
     };

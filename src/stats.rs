@@ -64,6 +64,69 @@ impl AddAssign for RayCounts {
     }
 }
 
+/// Milliseconds spent in each stage of the wavefront integrator, summed over worker
+/// threads (so on `n` threads they add up to about `n` times the render time). A stage
+/// the scene does not need does not exist and is `None` (absent from the JSON); the
+/// recursive integrator has no stages.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct StageTimes {
+    /// Camera-ray generation.
+    pub camera: f64,
+    /// Closest hits of camera rays.
+    pub trace: f64,
+    /// Shading of every hit, emitting shadow and child rays into their queues.
+    pub shade: f64,
+    /// Occlusion of shadow rays towards point and directional lights.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shadow: Option<f64>,
+    /// Occlusion of shadow rays towards points on area lights.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub area_shadow: Option<f64>,
+    /// Closest hits of the secondary queues, one stage per queue.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reflection: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refraction: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub glossy: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub translucency: Option<f64>,
+}
+
+impl StageTimes {
+    /// Closest hits of all secondary queues together.
+    pub fn secondary(&self) -> f64 {
+        [
+            self.reflection,
+            self.refraction,
+            self.glossy,
+            self.translucency,
+        ]
+        .iter()
+        .flatten()
+        .sum()
+    }
+}
+
+impl AddAssign for StageTimes {
+    fn add_assign(&mut self, o: Self) {
+        fn add(a: &mut Option<f64>, b: Option<f64>) {
+            if let Some(b) = b {
+                *a = Some(a.unwrap_or(0.0) + b);
+            }
+        }
+        self.camera += o.camera;
+        self.trace += o.trace;
+        self.shade += o.shade;
+        add(&mut self.shadow, o.shadow);
+        add(&mut self.area_shadow, o.area_shadow);
+        add(&mut self.reflection, o.reflection);
+        add(&mut self.refraction, o.refraction);
+        add(&mut self.glossy, o.glossy);
+        add(&mut self.translucency, o.translucency);
+    }
+}
+
 /// Wall-clock milliseconds per phase.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct PhaseTimes {

@@ -238,6 +238,95 @@ impl SceneAccel {
             || self.moving.as_ref().is_some_and(|m| m.any_hit(ray))
     }
 
+    /// Closest hits for a batch of rays, through each kind's batch entry point (BVH4:
+    /// 16 consecutive rays as one packet), merged by distance exactly as
+    /// [`closest_hit`](Self::closest_hit) merges them: each later kind searches only in
+    /// front of the hit found so far, so the results are identical. `scratch` is reused
+    /// between calls.
+    pub fn closest_hit_batch(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<SceneHit>],
+        scratch: &mut BatchScratch,
+    ) {
+        debug_assert_eq!(rays.len(), out.len());
+        out.fill(None);
+        let hits = &mut scratch.hits;
+        hits.clear();
+        hits.resize(rays.len(), None);
+        let scene_hit = |h: Hit, prim: fn(u32) -> PrimRef| SceneHit {
+            t: h.t,
+            prim: prim(h.prim),
+            u: h.u,
+            v: h.v,
+        };
+        if let Some(a) = &self.triangles {
+            a.closest_hit_batch(rays, hits);
+            for (o, h) in out.iter_mut().zip(hits.iter()) {
+                *o = h.map(|h| scene_hit(h, PrimRef::Triangle));
+            }
+        }
+        if let Some(a) = &self.spheres {
+            let clipped = &mut scratch.rays;
+            clipped.clear();
+            clipped.extend(rays.iter().zip(out.iter()).map(|(r, o)| {
+                let mut r = *r;
+                if let Some(b) = o {
+                    r.tmax = b.t;
+                }
+                r
+            }));
+            a.closest_hit_batch(clipped, hits);
+            for (o, h) in out.iter_mut().zip(hits.iter()) {
+                if let Some(h) = h {
+                    *o = Some(scene_hit(*h, PrimRef::Sphere));
+                }
+            }
+        }
+        if let Some(m) = &self.moving {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                let best = closer(*o, r, |r| m.closest_triangle(r), PrimRef::MovingTriangle);
+                *o = closer(best, r, |r| m.closest_sphere(r), PrimRef::MovingSphere);
+            }
+        }
+    }
+
+    /// Occlusion for a batch of rays: each kind's batch entry point over the rays no
+    /// earlier kind found blocked. Same answers as [`any_hit`](Self::any_hit).
+    pub fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool], scratch: &mut BatchScratch) {
+        debug_assert_eq!(rays.len(), out.len());
+        out.fill(false);
+        let kinds = [self.triangles.as_deref(), self.spheres.as_deref()];
+        let mut first = true;
+        for a in kinds.into_iter().flatten() {
+            if first {
+                a.any_hit_batch(rays, out);
+                first = false;
+                continue;
+            }
+            // Only the rays still unblocked, packed so packets stay full.
+            scratch.index.clear();
+            scratch.rays.clear();
+            for (i, (r, o)) in rays.iter().zip(out.iter()).enumerate() {
+                if !*o {
+                    scratch.index.push(i as u32);
+                    scratch.rays.push(*r);
+                }
+            }
+            scratch.blocked.clear();
+            scratch.blocked.resize(scratch.rays.len(), false);
+            a.any_hit_batch(&scratch.rays, &mut scratch.blocked);
+            for (&i, &b) in scratch.index.iter().zip(scratch.blocked.iter()) {
+                out[i as usize] = b;
+            }
+        }
+        if let Some(m) = &self.moving {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                *o = *o || m.any_hit(r);
+            }
+        }
+    }
+
     /// Build statistics of each structure present.
     pub fn info(&self) -> Vec<AccelInfo> {
         self.triangles
@@ -247,6 +336,15 @@ impl SceneAccel {
             .chain(self.moving.iter().flat_map(|m| m.info()))
             .collect()
     }
+}
+
+/// Reusable buffers of the batch queries.
+#[derive(Default)]
+pub struct BatchScratch {
+    hits: Vec<Option<Hit>>,
+    rays: Vec<Ray>,
+    index: Vec<u32>,
+    blocked: Vec<bool>,
 }
 
 /// `best`, or the hit `query` finds before it.

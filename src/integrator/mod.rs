@@ -1,13 +1,15 @@
 //! Integrators: how radiance is estimated per pixel. `whitted` is the recursive scalar
-//! reference renderer.
+//! reference renderer; `wavefront` renders the same images breadth first, tracing rays
+//! in batches from queues.
 
 pub mod sampling;
+pub mod wavefront;
 pub mod whitted;
 
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::scene::{SampleCounts, Scene};
-use crate::stats::{EffectSamplesDrawn, RayCounts};
+use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes};
 pub use sampling::{FilterKind, SamplerKind};
 use std::sync::Arc;
 
@@ -167,4 +169,55 @@ pub struct RenderOutput {
     /// Random samples drawn for the distributed effects; all zero for a scene that has
     /// none of them (pay for what you use).
     pub samples_drawn: EffectSamplesDrawn,
+    /// Time by stage for the wavefront integrator; `None` for the recursive one.
+    pub stages_ms: Option<StageTimes>,
+}
+
+/// Which integrator renders.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IntegratorKind {
+    /// Recursive, depth first, one ray at a time: the reference.
+    #[default]
+    Whitted,
+    /// Breadth first over ray queues, traced in packets.
+    Wavefront,
+}
+
+impl IntegratorKind {
+    pub const ALL: &'static [IntegratorKind] =
+        &[IntegratorKind::Whitted, IntegratorKind::Wavefront];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::Whitted => "whitted",
+            IntegratorKind::Wavefront => "wavefront",
+        }
+    }
+
+    /// Renders with this integrator.
+    pub fn render(
+        self,
+        scene: &Scene,
+        accel: &crate::accel::SceneAccel,
+        opts: &RenderOptions,
+    ) -> RenderOutput {
+        match self {
+            IntegratorKind::Whitted => whitted::render(scene, accel, opts),
+            IntegratorKind::Wavefront => wavefront::render(scene, accel, opts),
+        }
+    }
+}
+
+impl std::str::FromStr for IntegratorKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        sampling::parse_named(IntegratorKind::ALL, IntegratorKind::name, "integrator", s)
+    }
+}
+
+impl std::fmt::Display for IntegratorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }

@@ -100,7 +100,12 @@ impl FilterKind {
 const GAUSSIAN_RADIUS: f32 = 1.5;
 const GAUSSIAN_SIGMA: f32 = 0.5;
 
-fn parse_named<T: Copy>(all: &[T], name: fn(T) -> &'static str, what: &str, s: &str) -> Result<T> {
+pub(crate) fn parse_named<T: Copy>(
+    all: &[T],
+    name: fn(T) -> &'static str,
+    what: &str,
+    s: &str,
+) -> Result<T> {
     all.iter().copied().find(|k| name(*k) == s).ok_or_else(|| {
         let names: Vec<_> = all.iter().map(|k| name(*k)).collect();
         Error::parameter(

@@ -15,10 +15,20 @@
 //! count ([`SampleCounts`](crate::scene::SampleCounts)); a scene without an effect draws
 //! no sample for it, so it traces exactly the rays of the plain Whitted renderer.
 //!
-//! Determinism: each pixel draws all its samples from its own random stream, seeded
-//! from `(seed, pixel index)`, in a fixed order, and tiles are reassembled in a fixed
-//! order, so an image is bit-identical whatever the number of threads and whatever
-//! order tiles run.
+//! Determinism: the camera samples of a pixel (positions, lens points, shutter times)
+//! come from the pixel's own random stream, seeded from `(seed, pixel index)`; every
+//! shading point then draws its light points and lobe directions from a stream keyed by
+//! its *path identity* ([`path_rng`]: the camera sample's index in its pixel, extended
+//! by the branch index at each scattering event). A shading point's random numbers
+//! therefore do not depend on the order in which the ray tree is visited, which is what
+//! lets the breadth-first [`wavefront`](super::wavefront) integrator draw exactly the
+//! samples this depth-first one draws. Tiles are reassembled in a fixed order, so an
+//! image is bit-identical whatever the number of threads and whatever order tiles run.
+//!
+//! The local shading ([`Shader::shade_emit`]: emission, ambient, the direct-light
+//! reflectance with the shadow rays it needs, and the mirror, glossy and glass child
+//! rays with their weights and the contribution cutoff) is shared with the wavefront
+//! integrator: this renderer traces the emitted rays at once, the wavefront queues them.
 
 use super::sampling::{
     Dimension, PixelRng, decorrelate, fill_1d, fill_2d, sample_aperture, sample_phong_lobe,
@@ -27,8 +37,8 @@ use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::Film;
 use crate::geometry::{Ray, offset_ray_origin_scaled};
-use crate::scene::{CameraFrame, LensFrame, Light, Material, Scene};
-use crate::stats::{EffectSamplesDrawn, RayCounts, ms_since};
+use crate::scene::{CameraFrame, LensFrame, Light, Scene};
+use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::f32::consts::FRAC_1_PI;
@@ -38,6 +48,22 @@ use std::time::Instant;
 /// Renders `scene` with the structure `accel`. `opts` must pass
 /// [`RenderOptions::validate`]; parallelism is whatever rayon pool the caller runs in.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
+    let mut out = render_tiles(scene, opts, Workspace::default, |ws, camera, tile| {
+        render_tile(scene, accel, opts, camera, ws, tile)
+    });
+    out.stages_ms = None;
+    out
+}
+
+/// Splits the image into tiles, renders them in parallel with `tile_fn` (each rayon
+/// worker reuses one scratch value made by `init`) and reassembles them in a fixed
+/// order. Shared by both integrators.
+pub(crate) fn render_tiles<W>(
+    scene: &Scene,
+    opts: &RenderOptions,
+    init: impl Fn() -> W + Sync + Send,
+    tile_fn: impl Fn(&mut W, &CameraSampler, Tile) -> TileResult + Sync + Send,
+) -> RenderOutput {
     let start = Instant::now();
     let (width, height) = (opts.width, opts.height);
     let camera = CameraSampler {
@@ -52,7 +78,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
     let done = AtomicU64::new(0);
     let tiles: Vec<TileResult> = (0..total)
         .into_par_iter()
-        .map(|i| {
+        .map_init(&init, |ws, i| {
             let (tx, ty) = ((i % tiles_x as u64) as u32, (i / tiles_x as u64) as u32);
             let tile = Tile {
                 x0: tx * TILE,
@@ -60,7 +86,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
                 x1: ((tx + 1) * TILE).min(width),
                 y1: ((ty + 1) * TILE).min(height),
             };
-            let result = render_tile(scene, accel, opts, &camera, tile);
+            let result = tile_fn(ws, &camera, tile);
             if let Some(progress) = &opts.progress {
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             }
@@ -71,6 +97,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
     let mut film = Film::new(width, height);
     let mut rays = RayCounts::default();
     let mut samples_drawn = EffectSamplesDrawn::default();
+    let mut stages = StageTimes::default();
     let mut nonfinite_samples = 0;
     for t in tiles {
         let mut values = t.pixels.into_iter();
@@ -81,6 +108,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
         }
         rays += t.rays;
         samples_drawn += t.samples_drawn;
+        stages += t.stages;
         nonfinite_samples += t.nonfinite_samples;
     }
     RenderOutput {
@@ -89,6 +117,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
         render_ms: ms_since(start),
         nonfinite_samples,
         samples_drawn,
+        stages_ms: Some(stages),
     }
 }
 
@@ -132,10 +161,146 @@ impl SamplePlan {
 }
 
 /// Everything that turns sample positions into camera rays.
-struct CameraSampler {
-    frame: CameraFrame,
-    lens: LensFrame,
-    plan: SamplePlan,
+pub(crate) struct CameraSampler {
+    pub frame: CameraFrame,
+    pub lens: LensFrame,
+    pub plan: SamplePlan,
+}
+
+/// The camera samples of one pixel: `eye` pixel offsets, and for each of them
+/// `rays_per_eye` rays (lens points times shutter times), eye sample major.
+#[derive(Default)]
+pub(crate) struct PixelSamples {
+    /// Offset of each eye sample inside the pixel (or the filter footprint).
+    pub offsets: Vec<(f32, f32)>,
+    pub rays: Vec<Ray>,
+    pixel_pos: Vec<(f32, f32)>,
+    lens_pos: Vec<(f32, f32)>,
+    times: Vec<f32>,
+}
+
+impl CameraSampler {
+    /// Camera rays per eye sample: `lens * time` (absent effects count 1).
+    pub fn rays_per_eye(&self) -> u32 {
+        self.plan.lens.max(1) * self.plan.time.max(1)
+    }
+
+    /// The camera rays of pixel `(x, y)` (`index` in the image), drawn from the pixel's
+    /// own stream. Draw order is fixed: pixel positions, lens points, shutter times. A
+    /// scene with no lens and no motion draws the pixel positions only, exactly as the
+    /// plain Whitted renderer did.
+    pub fn pixel_samples(
+        &self,
+        seed: u64,
+        index: u64,
+        x: u32,
+        y: u32,
+        out: &mut PixelSamples,
+        drawn: &mut EffectSamplesDrawn,
+    ) {
+        let plan = self.plan;
+        let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
+        let rng = &mut PixelRng::new(seed, index);
+        fill_2d(
+            plan.sampler,
+            plan.eye,
+            Dimension::Pixel,
+            true,
+            rng,
+            &mut out.pixel_pos,
+        );
+        if plan.lens > 0 {
+            let n = plan.eye * lens_n;
+            fill_2d(
+                plan.sampler,
+                n,
+                Dimension::Lens,
+                false,
+                rng,
+                &mut out.lens_pos,
+            );
+            decorrelate(plan.sampler, &mut out.lens_pos, rng);
+            drawn.lens += n as u64;
+        }
+        if plan.time > 0 {
+            let n = plan.eye * lens_n * time_n;
+            fill_1d(plan.sampler, n, Dimension::Time, rng, &mut out.times);
+            decorrelate(plan.sampler, &mut out.times, rng);
+            drawn.time += n as u64;
+        }
+        // Box: samples inside the pixel; otherwise over the filter's footprint.
+        let footprint = 2.0 * plan.filter.radius();
+        out.offsets.clear();
+        out.rays.clear();
+        for (e, &(sx, sy)) in out.pixel_pos.iter().enumerate() {
+            let (ox, oy) = if plan.filter == FilterKind::Box {
+                (sx, sy)
+            } else {
+                (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
+            };
+            out.offsets.push((ox, oy));
+            let pinhole = self.frame.ray(x as f32 + ox, y as f32 + oy);
+            for l in 0..lens_n {
+                let lens_index = e * lens_n as usize + l as usize;
+                let lens_point = (plan.lens > 0).then(|| {
+                    let (u, v) = out.lens_pos[lens_index];
+                    sample_aperture(u, v, self.lens.blades, self.lens.rotation)
+                });
+                for t in 0..time_n {
+                    let time = if plan.time > 0 {
+                        self.lens
+                            .time(out.times[lens_index * time_n as usize + t as usize])
+                    } else {
+                        self.lens.shutter[0]
+                    };
+                    out.rays
+                        .push(self.lens.ray(&self.frame, pinhole, lens_point, time));
+                }
+            }
+        }
+    }
+}
+
+/// Filters the radiance of a pixel's camera rays (`radiance[i]` for `rays[i]` of
+/// [`PixelSamples`]) into the pixel value. A ray whose radiance is NaN or infinite is
+/// dropped and counted in `nonfinite`.
+pub(crate) fn resolve_pixel(
+    plan: &SamplePlan,
+    offsets: &[(f32, f32)],
+    radiance: &[Vec3],
+    nonfinite: &mut u64,
+) -> Vec3 {
+    let per_eye = (plan.lens.max(1) * plan.time.max(1)) as usize;
+    let mut sum = Vec3::ZERO;
+    let mut weight_sum = 0.0f32;
+    let mut plain_sum = Vec3::ZERO;
+    for (e, &(ox, oy)) in offsets.iter().enumerate() {
+        let mut radiance_sum = Vec3::ZERO;
+        for &r in &radiance[e * per_eye..(e + 1) * per_eye] {
+            if r.is_finite() {
+                radiance_sum += r;
+            } else {
+                *nonfinite += 1;
+            }
+        }
+        let radiance = if per_eye == 1 {
+            radiance_sum
+        } else {
+            radiance_sum / per_eye as f32
+        };
+        let w = plan.filter.weight(ox - 0.5, oy - 0.5);
+        sum += w * radiance;
+        weight_sum += w;
+        plain_sum += radiance;
+    }
+    // Box filter: the mean of the samples inside the pixel. Weighted filters divide by
+    // the weights drawn (a ratio estimator, consistent); should every sample land where
+    // the filter is zero, the plain mean stands in.
+    if weight_sum > 0.0 {
+        sum / weight_sum
+    } else {
+        plain_sum / plan.eye as f32
+    }
 }
 
 /// What the shader needs to know about a hit.
@@ -291,7 +456,7 @@ pub fn dielectric(d: Vec3, n: Vec3, eta_i: f32, eta_t: f32) -> DielectricScatter
 
 /// Tile edge in pixels: 256 pixels amortise rayon's per-task cost while leaving many
 /// tiles per thread for load balance on uneven scenes.
-const TILE: u32 = 16;
+pub(crate) const TILE: u32 = 16;
 
 /// Shadow rays to a point light stop this fraction short of it, so that geometry the
 /// light sits on (a lamp on a ceiling) does not shadow it through rounding of `t`.
@@ -304,216 +469,311 @@ const SHADOW_TMAX_SCALE: f32 = 1.0 - 16.0 * f32::EPSILON;
 const AREA_SHADOW_TMAX_SCALE: f32 = 1.0 - 1e-4;
 
 #[derive(Clone, Copy, Debug)]
-struct Tile {
-    x0: u32,
-    y0: u32,
-    x1: u32,
-    y1: u32,
+pub(crate) struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
 }
 
-struct TileResult {
-    tile: Tile,
+pub(crate) struct TileResult {
+    pub tile: Tile,
     /// Row-major within the tile.
-    pixels: Vec<Vec3>,
-    rays: RayCounts,
-    samples_drawn: EffectSamplesDrawn,
-    nonfinite_samples: u64,
+    pub pixels: Vec<Vec3>,
+    pub rays: RayCounts,
+    pub samples_drawn: EffectSamplesDrawn,
+    pub nonfinite_samples: u64,
+    pub stages: StageTimes,
 }
 
-fn render_tile(
-    scene: &Scene,
-    accel: &SceneAccel,
-    opts: &RenderOptions,
-    camera: &CameraSampler,
-    tile: Tile,
-) -> TileResult {
-    let plan = camera.plan;
-    let mut tracer = Tracer {
-        scene,
-        accel,
-        max_depth: opts.max_depth,
-        min_contribution: opts.min_contribution,
-        plan,
-        rng: PixelRng::new(opts.seed, 0),
-        rays: RayCounts::default(),
-        drawn: EffectSamplesDrawn::default(),
-        light_points: Vec::new(),
-        lobe_points: Vec::new(),
-    };
-    let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
-    let mut pixel_pos = Vec::with_capacity(plan.eye as usize);
-    let mut lens_pos = Vec::new();
-    let mut times = Vec::new();
-    let mut pixels = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
-    let mut nonfinite_samples = 0;
-    // Box: samples inside the pixel; otherwise over the filter's footprint.
-    let footprint = 2.0 * plan.filter.radius();
-    for y in tile.y0..tile.y1 {
-        for x in tile.x0..tile.x1 {
-            let index = y as u64 * opts.width as u64 + x as u64;
-            let rng = &mut tracer.rng;
-            *rng = PixelRng::new(opts.seed, index);
-            // Draw order is fixed: pixel positions, lens points, shutter times, then
-            // whatever the paths draw. A scene with no lens and no motion draws the
-            // pixel positions only, exactly as the plain Whitted renderer did.
-            fill_2d(
-                plan.sampler,
-                plan.eye,
-                Dimension::Pixel,
-                true,
-                rng,
-                &mut pixel_pos,
-            );
-            if plan.lens > 0 {
-                let n = plan.eye * lens_n;
-                fill_2d(plan.sampler, n, Dimension::Lens, false, rng, &mut lens_pos);
-                decorrelate(plan.sampler, &mut lens_pos, rng);
-                tracer.drawn.lens += n as u64;
-            }
-            if plan.time > 0 {
-                let n = plan.eye * lens_n * time_n;
-                fill_1d(plan.sampler, n, Dimension::Time, rng, &mut times);
-                decorrelate(plan.sampler, &mut times, rng);
-                tracer.drawn.time += n as u64;
-            }
-            let mut sum = Vec3::ZERO;
-            let mut weight_sum = 0.0f32;
-            let mut plain_sum = Vec3::ZERO;
-            for (e, &(sx, sy)) in pixel_pos.iter().enumerate() {
-                let (ox, oy) = if plan.filter == FilterKind::Box {
-                    (sx, sy)
-                } else {
-                    (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
-                };
-                let pinhole = camera.frame.ray(x as f32 + ox, y as f32 + oy);
-                let mut radiance_sum = Vec3::ZERO;
-                for l in 0..lens_n {
-                    let lens_index = e * lens_n as usize + l as usize;
-                    let lens_point = (plan.lens > 0).then(|| {
-                        let (u, v) = lens_pos[lens_index];
-                        sample_aperture(u, v, camera.lens.blades, camera.lens.rotation)
-                    });
-                    for t in 0..time_n {
-                        let time = if plan.time > 0 {
-                            camera
-                                .lens
-                                .time(times[lens_index * time_n as usize + t as usize])
-                        } else {
-                            camera.lens.shutter[0]
-                        };
-                        let ray = camera.lens.ray(&camera.frame, pinhole, lens_point, time);
-                        tracer.rays.camera += 1;
-                        let radiance = tracer.radiance(&ray, 0, Vec3::ONE);
-                        if radiance.is_finite() {
-                            radiance_sum += radiance;
-                        } else {
-                            nonfinite_samples += 1;
-                        }
-                    }
-                }
-                let radiance = if lens_n * time_n == 1 {
-                    radiance_sum
-                } else {
-                    radiance_sum / (lens_n * time_n) as f32
-                };
-                let w = plan.filter.weight(ox - 0.5, oy - 0.5);
-                sum += w * radiance;
-                weight_sum += w;
-                plain_sum += radiance;
-            }
-            // Box filter: the mean of the samples inside the pixel. Weighted filters
-            // divide by the weights drawn (a ratio estimator, consistent); should every
-            // sample land where the filter is zero, the plain mean stands in.
-            pixels.push(if weight_sum > 0.0 {
-                sum / weight_sum
-            } else {
-                plain_sum / plan.eye as f32
-            });
-        }
-    }
-    TileResult {
-        tile,
-        pixels,
-        rays: tracer.rays,
-        samples_drawn: tracer.drawn,
-        nonfinite_samples,
-    }
+/// The random stream of the shading point reached by path `path` of pixel `pixel`.
+/// Keyed by identity, not by visiting order, so a depth-first and a breadth-first
+/// traversal of the same ray tree draw the same numbers. Distinct from the pixel's own
+/// stream (`PixelRng::new(seed, pixel)`), which draws the camera samples.
+pub fn path_rng(seed: u64, pixel: u64, path: u64) -> PixelRng {
+    PixelRng::new(
+        seed ^ PATH_STREAM,
+        pixel ^ path.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(32),
+    )
 }
 
-/// The recursive part, with the counters of the tile it works for and the random
-/// stream of the pixel it works on.
-struct Tracer<'a> {
-    scene: &'a Scene,
-    accel: &'a SceneAccel,
-    max_depth: u32,
-    min_contribution: f32,
-    plan: SamplePlan,
-    rng: PixelRng,
-    rays: RayCounts,
-    drawn: EffectSamplesDrawn,
+/// Identity of the `branch`-th child ray emitted at the shading point of `parent`.
+#[inline]
+pub fn child_path(parent: u64, branch: u32) -> u64 {
+    // SplitMix64's finaliser spreads consecutive inputs over the whole range.
+    let mut z = parent
+        .wrapping_add(branch as u64 + 1)
+        .wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 30)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 27)
+}
+
+/// Separates the shading-point streams from the pixel streams of the same seed.
+const PATH_STREAM: u64 = 0x5bd1_e995_7f4a_7c15;
+
+/// Which queue a child ray belongs to (and which counter it is counted in).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ChildKind {
+    Reflection = 0,
+    Refraction = 1,
+    Glossy = 2,
+    Translucency = 3,
+}
+
+/// A shadow ray and what its light adds if nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShadowRay {
+    pub ray: Ray,
+    /// Reflected radiance from this light sample, unoccluded (already divided by the
+    /// number of samples of its light).
+    pub contribution: Vec3,
+    /// Index of the light in `Scene::lights` (the wavefront keeps one queue per light,
+    /// so a packet of shadow rays converges on one light).
+    pub light: u32,
+}
+
+/// A reflected, refracted or lobe-sampled ray and the weight its radiance gets.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ChildRay {
+    pub ray: Ray,
+    pub kind: ChildKind,
+    /// Factor applied to the child's radiance in this shading point's radiance.
+    pub weight: Vec3,
+    /// Throughput the child carries for the contribution cutoff (the product of the
+    /// lobe albedos from the camera; unlike `weight`, not divided by the lobe count).
+    pub throughput: Vec3,
+    pub path: u64,
+}
+
+/// What shading one hit produces: its local radiance and the rays it needs traced.
+#[derive(Default)]
+pub(crate) struct Emitted {
+    /// Emission plus ambient light.
+    pub local: Vec3,
+    pub shadow: Vec<ShadowRay>,
+    pub children: Vec<ChildRay>,
     /// Scratch sets, reused so that sampling never allocates per ray.
-    light_points: Vec<(f32, f32)>,
-    lobe_points: Vec<(f32, f32)>,
+    points: Vec<(f32, f32)>,
 }
 
-impl Tracer<'_> {
-    /// Radiance arriving along `ray`. `throughput` is the product of the weights from
-    /// the camera to this ray, for the contribution cutoff.
-    fn radiance(&mut self, ray: &Ray, depth: u32, throughput: Vec3) -> Vec3 {
-        match self.accel.closest_hit(ray) {
-            None => self.scene.background,
-            Some(hit) => {
-                let si = SurfaceInteraction::new(self.scene, ray, &hit);
-                self.shade(ray.dir.normalize(), ray.time, &si, depth, throughput)
-            }
+/// The local shading model, shared by both integrators: what a hit emits and which
+/// rays it spawns with which weights. The radiance at the hit is
+/// `local + Σ unoccluded shadow contributions + Σ weight · radiance(child)`.
+#[derive(Clone, Copy)]
+pub(crate) struct Shader<'a> {
+    pub scene: &'a Scene,
+    pub max_depth: u32,
+    pub min_contribution: f32,
+    pub plan: SamplePlan,
+    pub seed: u64,
+}
+
+impl Shader<'_> {
+    pub fn new<'a>(scene: &'a Scene, opts: &RenderOptions, plan: SamplePlan) -> Shader<'a> {
+        Shader {
+            scene,
+            max_depth: opts.max_depth,
+            min_contribution: opts.min_contribution,
+            plan,
+            seed: opts.seed,
         }
     }
 
-    fn shade(
-        &mut self,
+    /// Shades the hit `si` of a ray with unit direction `d` at depth `depth`, reached
+    /// with `throughput`, by path `path` of pixel `pixel`. Fills `out` (cleared first)
+    /// and counts the rays it emits and the samples it draws.
+    #[allow(clippy::too_many_arguments)]
+    pub fn shade_emit(
+        &self,
         d: Vec3,
         time: f32,
         si: &SurfaceInteraction,
         depth: u32,
         throughput: Vec3,
-    ) -> Vec3 {
+        pixel: u64,
+        path: u64,
+        out: &mut Emitted,
+        rays: &mut RayCounts,
+        drawn: &mut EffectSamplesDrawn,
+    ) {
+        out.shadow.clear();
+        out.children.clear();
         let scene = self.scene;
         let m = &scene.materials[si.material as usize];
-        let mut l = m.emission;
+        // The shading point's random stream, created on first use: most draw nothing.
+        let mut stream: Option<PixelRng> = None;
+        out.local = m.emission;
         if m.diffuse != Vec3::ZERO || m.checker.is_some() || m.specular != Vec3::ZERO {
             let albedo = m.albedo_at(si.p);
-            l += scene.ambient * albedo + self.direct(-d, time, si, m, albedo);
+            out.local += scene.ambient * albedo;
+            self.direct(
+                -d,
+                time,
+                si,
+                albedo,
+                &mut stream,
+                pixel,
+                path,
+                out,
+                rays,
+                drawn,
+            );
         }
         if depth >= self.max_depth {
-            return l;
+            return;
         }
-        if m.mirror != Vec3::ZERO {
-            let dir = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
-                reflect(d, si.n_geometric)
+        let origin_out = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
+        let push = |out: &mut Emitted, kind, dir, origin, weight, throughput| {
+            let branch = out.children.len() as u32;
+            let mut ray = Ray::new(origin, dir);
+            ray.time = time;
+            out.children.push(ChildRay {
+                ray,
+                kind,
+                weight,
+                throughput,
+                path: child_path(path, branch),
             });
-            l += m.mirror * self.reflected(si, dir, time, depth, throughput * m.mirror);
+        };
+        if m.mirror != Vec3::ZERO {
+            let tp = throughput * m.mirror;
+            if tp.max_element() >= self.min_contribution {
+                let dir = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
+                    reflect(d, si.n_geometric)
+                });
+                rays.reflection += 1;
+                push(out, ChildKind::Reflection, dir, origin_out, m.mirror, tp);
+            }
         }
+        // Glossy reflection: the mean radiance over directions drawn from the Phong
+        // lobe around the mirror direction. Directions below the surface carry nothing
+        // (the lobe is clipped by the surface, as a real glossy coat is).
         if m.is_glossy() {
-            l += m.glossy * self.glossy(d, time, si, m, depth, throughput * m.glossy);
+            let tp = throughput * m.glossy;
+            if tp.max_element() >= self.min_contribution {
+                let axis = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
+                    reflect(d, si.n_geometric)
+                });
+                let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
+                let weight = m.glossy / n as f32;
+                for i in 0..n as usize {
+                    let (u, v) = out.points[i];
+                    let dir = sample_phong_lobe(axis, m.gloss_exponent, u, v);
+                    if dir.dot(si.n_geometric) <= 0.0 {
+                        continue;
+                    }
+                    rays.glossy += 1;
+                    push(out, ChildKind::Glossy, dir, origin_out, weight, tp);
+                }
+            }
         }
+        // Glass: Fresnel-weighted reflection plus transmission; a translucent material
+        // blurs the transmitted ray over the Phong lobe around the refracted direction.
         if m.is_transmissive() {
-            l += self.glass(d, time, si, m, depth, throughput);
+            let (eta_i, eta_t) = if si.front_face {
+                (1.0, m.ior)
+            } else {
+                (m.ior, 1.0)
+            };
+            let mut scatter = dielectric(d, si.n_shading, eta_i, eta_t);
+            // With shading normals the refracted ray can end up on the incident side of
+            // the true surface; the geometric normal always gives a consistent answer.
+            if scatter
+                .refracted
+                .is_some_and(|t| t.dot(si.n_geometric) >= 0.0)
+            {
+                scatter = dielectric(d, si.n_geometric, eta_i, eta_t);
+            }
+            let f = scatter.reflectance;
+            if f > 0.0 {
+                let tp = throughput * f;
+                if tp.max_element() >= self.min_contribution {
+                    let dir = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
+                        reflect(d, si.n_geometric)
+                    });
+                    rays.reflection += 1;
+                    push(
+                        out,
+                        ChildKind::Reflection,
+                        dir,
+                        origin_out,
+                        Vec3::splat(f),
+                        tp,
+                    );
+                }
+            }
+            if let Some(t) = scatter.refracted {
+                let weight = (1.0 - f) * m.transmission;
+                let tp = throughput * weight;
+                if tp.max_element() >= self.min_contribution && weight != Vec3::ZERO {
+                    // Refraction leaves into the far side: offset against the facing
+                    // normal.
+                    let origin = offset_ray_origin_scaled(si.p, -si.n_geometric, si.scale);
+                    if m.is_translucent() {
+                        let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
+                        let w = weight / n as f32;
+                        for i in 0..n as usize {
+                            let (u, v) = out.points[i];
+                            let dir = sample_phong_lobe(t, m.translucency_exponent, u, v);
+                            if dir.dot(si.n_geometric) >= 0.0 {
+                                continue;
+                            }
+                            rays.translucency += 1;
+                            push(out, ChildKind::Translucency, dir, origin, w, tp);
+                        }
+                    } else {
+                        rays.refraction += 1;
+                        push(out, ChildKind::Refraction, t, origin, weight, tp);
+                    }
+                }
+            }
         }
-        l
+    }
+
+    /// Lobe sample points in `out.points`: `glossy` stratified ones at the first hit
+    /// of a camera ray, one deeper down (the ray tree stays linear). Returns the count.
+    fn lobe_points(
+        &self,
+        depth: u32,
+        stream: &mut Option<PixelRng>,
+        pixel: u64,
+        path: u64,
+        out: &mut Emitted,
+        drawn: &mut EffectSamplesDrawn,
+    ) -> u32 {
+        let n = if depth == 0 { self.plan.glossy } else { 1 };
+        let rng = stream.get_or_insert_with(|| path_rng(self.seed, pixel, path));
+        fill_2d(
+            self.plan.sampler,
+            n,
+            Dimension::Hit,
+            false,
+            rng,
+            &mut out.points,
+        );
+        drawn.glossy += n as u64;
+        n
     }
 
     /// Direct light: point and directional lights with one shadow ray each, area lights
     /// with `shadow` stratified points each. The reflectance is Lambert diffuse
     /// (`albedo / π · cosθ`, so that `ambient * albedo` and direct light share one
     /// scale) plus a Blinn-Phong highlight `ks (n·h)^shininess`.
+    #[allow(clippy::too_many_arguments)]
     fn direct(
-        &mut self,
+        &self,
         wo: Vec3,
         time: f32,
         si: &SurfaceInteraction,
-        m: &Material,
         albedo: Vec3,
-    ) -> Vec3 {
+        stream: &mut Option<PixelRng>,
+        pixel: u64,
+        path: u64,
+        out: &mut Emitted,
+        rays: &mut RayCounts,
+        drawn: &mut EffectSamplesDrawn,
+    ) {
+        let m = &self.scene.materials[si.material as usize];
         let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
         // A light below the surface (or below the shading normal) contributes nothing:
         // no shadow ray for it.
@@ -529,9 +789,18 @@ impl Tracer<'_> {
             }
             Some(f)
         };
-        let mut l = Vec3::ZERO;
-        let scene = self.scene;
-        for light in &scene.lights {
+        let mut shadow = |out: &mut Emitted, dir, tmax, contribution, light| {
+            let mut ray = Ray::segment(origin, dir, 0.0, tmax);
+            ray.time = time;
+            rays.shadow += 1;
+            out.shadow.push(ShadowRay {
+                ray,
+                contribution,
+                light,
+            });
+        };
+        for (index, light) in self.scene.lights.iter().enumerate() {
+            let index = index as u32;
             let (wi, tmax, irradiance) = match *light {
                 Light::Point {
                     position,
@@ -547,237 +816,146 @@ impl Tracer<'_> {
                     irradiance,
                 } => (-direction.normalize(), f32::INFINITY, irradiance),
                 _ => {
-                    l += self.area_light(light, origin, time, &reflectance);
+                    // The mean over `shadow` stratified points of the light of
+                    // `f · L dω / pdf`.
+                    let n = self.plan.shadow;
+                    let rng = stream.get_or_insert_with(|| path_rng(self.seed, pixel, path));
+                    let mut points = std::mem::take(&mut out.points);
+                    fill_2d(
+                        self.plan.sampler,
+                        n,
+                        Dimension::Hit,
+                        false,
+                        rng,
+                        &mut points,
+                    );
+                    drawn.light += n as u64;
+                    for &(u, v) in &points {
+                        let Some(s) = light.sample(origin, u, v) else {
+                            continue;
+                        };
+                        let Some(f) = reflectance(s.wi) else {
+                            continue;
+                        };
+                        let tmax = s.dist * AREA_SHADOW_TMAX_SCALE;
+                        shadow(out, s.wi, tmax, s.weight * f / n as f32, index);
+                    }
+                    out.points = points;
                     continue;
                 }
             };
-            let Some(f) = reflectance(wi) else {
-                continue;
-            };
-            self.rays.shadow += 1;
-            if self.occluded(origin, wi, tmax, time) {
-                continue;
-            }
-            l += irradiance * f;
-        }
-        l
-    }
-
-    /// The mean over `shadow` stratified points of the light of `f · L dω / pdf`.
-    fn area_light(
-        &mut self,
-        light: &Light,
-        origin: Vec3,
-        time: f32,
-        reflectance: &impl Fn(Vec3) -> Option<Vec3>,
-    ) -> Vec3 {
-        let n = self.plan.shadow;
-        let mut points = std::mem::take(&mut self.light_points);
-        fill_2d(
-            self.plan.sampler,
-            n,
-            Dimension::Hit,
-            false,
-            &mut self.rng,
-            &mut points,
-        );
-        self.drawn.light += n as u64;
-        let mut sum = Vec3::ZERO;
-        for &(u, v) in &points {
-            let Some(s) = light.sample(origin, u, v) else {
-                continue;
-            };
-            let Some(f) = reflectance(s.wi) else {
-                continue;
-            };
-            self.rays.shadow += 1;
-            if !self.occluded(origin, s.wi, s.dist * AREA_SHADOW_TMAX_SCALE, time) {
-                sum += s.weight * f;
+            if let Some(f) = reflectance(wi) {
+                shadow(out, wi, tmax, irradiance * f, index);
             }
         }
-        self.light_points = points;
-        sum / n as f32
     }
+}
 
-    fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32, time: f32) -> bool {
-        let mut r = Ray::segment(origin, dir, 0.0, tmax);
-        r.time = time;
-        self.accel.any_hit(&r)
-    }
+/// The recursive integrator: traces the rays [`Shader::shade_emit`] emits at once,
+/// depth first, with the counters of the tile it works for.
+struct Tracer<'a> {
+    shader: Shader<'a>,
+    accel: &'a SceneAccel,
+    rays: RayCounts,
+    drawn: EffectSamplesDrawn,
+    /// What each depth of the current path emitted, reused so that shading never
+    /// allocates per ray.
+    emitted: Vec<Emitted>,
+}
 
-    /// Glossy reflection: the mean radiance over directions drawn from the Phong lobe
-    /// around the mirror direction. Directions below the surface carry nothing (the
-    /// lobe is clipped by the surface, as a real glossy coat is).
-    fn glossy(
-        &mut self,
-        d: Vec3,
-        time: f32,
-        si: &SurfaceInteraction,
-        m: &Material,
-        depth: u32,
-        throughput: Vec3,
-    ) -> Vec3 {
-        if throughput.max_element() < self.min_contribution {
-            return Vec3::ZERO;
-        }
-        let axis = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
-            reflect(d, si.n_geometric)
-        });
-        let dirs = self.lobe(depth, axis, m.gloss_exponent);
-        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
-        let mut sum = Vec3::ZERO;
-        for &dir in dirs.iter() {
-            if dir.dot(si.n_geometric) <= 0.0 {
-                continue;
+/// Per-worker scratch of the recursive integrator.
+#[derive(Default)]
+pub(crate) struct Workspace {
+    samples: PixelSamples,
+    radiance: Vec<Vec3>,
+    emitted: Vec<Emitted>,
+}
+
+fn render_tile(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    camera: &CameraSampler,
+    ws: &mut Workspace,
+    tile: Tile,
+) -> TileResult {
+    let plan = camera.plan;
+    let mut tracer = Tracer {
+        shader: Shader::new(scene, opts, plan),
+        accel,
+        rays: RayCounts::default(),
+        drawn: EffectSamplesDrawn::default(),
+        emitted: std::mem::take(&mut ws.emitted),
+    };
+    let mut pixels = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+    let mut nonfinite_samples = 0;
+    for y in tile.y0..tile.y1 {
+        for x in tile.x0..tile.x1 {
+            let index = y as u64 * opts.width as u64 + x as u64;
+            let samples = &mut ws.samples;
+            camera.pixel_samples(opts.seed, index, x, y, samples, &mut tracer.drawn);
+            tracer.rays.camera += samples.rays.len() as u64;
+            ws.radiance.clear();
+            for (s, ray) in samples.rays.iter().enumerate() {
+                let l = tracer.radiance(ray, 0, Vec3::ONE, index, s as u64);
+                ws.radiance.push(l);
             }
-            self.rays.glossy += 1;
-            let mut r = Ray::new(origin, dir);
-            r.time = time;
-            sum += self.radiance(&r, depth + 1, throughput);
+            pixels.push(resolve_pixel(
+                &plan,
+                &samples.offsets,
+                &ws.radiance,
+                &mut nonfinite_samples,
+            ));
         }
-        sum / dirs.len() as f32
     }
-
-    /// Directions of the lobe `cos^exponent` around `axis`: `glossy` stratified ones at
-    /// the first hit of a camera ray, one deeper down (the ray tree stays linear).
-    fn lobe(&mut self, depth: u32, axis: Vec3, exponent: f32) -> LobeDirections {
-        let n = if depth == 0 { self.plan.glossy } else { 1 };
-        let mut points = std::mem::take(&mut self.lobe_points);
-        fill_2d(
-            self.plan.sampler,
-            n,
-            Dimension::Hit,
-            false,
-            &mut self.rng,
-            &mut points,
-        );
-        self.drawn.glossy += n as u64;
-        let dirs = points
-            .iter()
-            .map(|&(u, v)| sample_phong_lobe(axis, exponent, u, v))
-            .collect();
-        self.lobe_points = points;
-        dirs
+    ws.emitted = tracer.emitted;
+    TileResult {
+        tile,
+        pixels,
+        rays: tracer.rays,
+        samples_drawn: tracer.drawn,
+        nonfinite_samples,
+        stages: StageTimes::default(),
     }
+}
 
-    /// Fresnel-weighted reflection plus transmission; a translucent material blurs the
-    /// transmitted ray over the Phong lobe around the refracted direction.
-    fn glass(
-        &mut self,
-        d: Vec3,
-        time: f32,
-        si: &SurfaceInteraction,
-        m: &Material,
-        depth: u32,
-        throughput: Vec3,
-    ) -> Vec3 {
-        let (eta_i, eta_t) = if si.front_face {
-            (1.0, m.ior)
-        } else {
-            (m.ior, 1.0)
+impl Tracer<'_> {
+    /// Radiance arriving along `ray` by path `path` of pixel `pixel`. `throughput` is
+    /// the product of the weights from the camera to this ray, for the contribution
+    /// cutoff.
+    fn radiance(&mut self, ray: &Ray, depth: u32, throughput: Vec3, pixel: u64, path: u64) -> Vec3 {
+        let Some(hit) = self.accel.closest_hit(ray) else {
+            return self.shader.scene.background;
         };
-        let mut scatter = dielectric(d, si.n_shading, eta_i, eta_t);
-        // With shading normals the refracted ray can end up on the incident side of
-        // the true surface; the geometric normal always gives a consistent answer.
-        if scatter
-            .refracted
-            .is_some_and(|t| t.dot(si.n_geometric) >= 0.0)
-        {
-            scatter = dielectric(d, si.n_geometric, eta_i, eta_t);
+        let si = SurfaceInteraction::new(self.shader.scene, ray, &hit);
+        let d = depth as usize;
+        if self.emitted.len() <= d {
+            self.emitted.resize_with(d + 1, Emitted::default);
         }
-        let f = scatter.reflectance;
-        let mut l = Vec3::ZERO;
-        if f > 0.0 {
-            let dir = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
-                reflect(d, si.n_geometric)
-            });
-            l += f * self.reflected(si, dir, time, depth, throughput * f);
-        }
-        if let Some(t) = scatter.refracted {
-            let weight = (1.0 - f) * m.transmission;
-            let throughput = throughput * weight;
-            if throughput.max_element() >= self.min_contribution && weight != Vec3::ZERO {
-                // Refraction leaves into the far side: offset against the facing normal.
-                let origin = offset_ray_origin_scaled(si.p, -si.n_geometric, si.scale);
-                if m.is_translucent() {
-                    let dirs = self.lobe(depth, t, m.translucency_exponent);
-                    let mut sum = Vec3::ZERO;
-                    for &dir in dirs.iter() {
-                        if dir.dot(si.n_geometric) >= 0.0 {
-                            continue;
-                        }
-                        self.rays.translucency += 1;
-                        let mut r = Ray::new(origin, dir);
-                        r.time = time;
-                        sum += self.radiance(&r, depth + 1, throughput);
-                    }
-                    l += weight * sum / dirs.len() as f32;
-                } else {
-                    self.rays.refraction += 1;
-                    let mut r = Ray::new(origin, t);
-                    r.time = time;
-                    l += weight * self.radiance(&r, depth + 1, throughput);
-                }
+        let mut out = std::mem::take(&mut self.emitted[d]);
+        self.shader.shade_emit(
+            ray.dir.normalize(),
+            ray.time,
+            &si,
+            depth,
+            throughput,
+            pixel,
+            path,
+            &mut out,
+            &mut self.rays,
+            &mut self.drawn,
+        );
+        let mut l = out.local;
+        for s in &out.shadow {
+            if !self.accel.any_hit(&s.ray) {
+                l += s.contribution;
             }
         }
+        for c in &out.children {
+            l += c.weight * self.radiance(&c.ray, depth + 1, c.throughput, pixel, c.path);
+        }
+        self.emitted[d] = out;
         l
-    }
-
-    /// Traces a reflection ray leaving on the incident side, unless its weight has
-    /// fallen below the contribution cutoff.
-    fn reflected(
-        &mut self,
-        si: &SurfaceInteraction,
-        dir: Vec3,
-        time: f32,
-        depth: u32,
-        throughput: Vec3,
-    ) -> Vec3 {
-        if throughput.max_element() < self.min_contribution {
-            return Vec3::ZERO;
-        }
-        self.rays.reflection += 1;
-        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
-        let mut r = Ray::new(origin, dir);
-        r.time = time;
-        self.radiance(&r, depth + 1, throughput)
-    }
-}
-
-/// Lobe directions of one shading point: up to 16 inline, so the common counts never
-/// allocate; more (a large `glossy` count at a first hit) spill to the heap once per
-/// such hit, not per ray.
-enum LobeDirections {
-    Inline([Vec3; 16], usize),
-    Heap(Vec<Vec3>),
-}
-
-impl FromIterator<Vec3> for LobeDirections {
-    fn from_iter<I: IntoIterator<Item = Vec3>>(iter: I) -> Self {
-        let mut buf = [Vec3::ZERO; 16];
-        let mut n = 0;
-        let mut it = iter.into_iter();
-        for d in it.by_ref() {
-            if n == 16 {
-                let mut v = buf.to_vec();
-                v.push(d);
-                v.extend(it);
-                return LobeDirections::Heap(v);
-            }
-            buf[n] = d;
-            n += 1;
-        }
-        LobeDirections::Inline(buf, n)
-    }
-}
-
-impl std::ops::Deref for LobeDirections {
-    type Target = [Vec3];
-    fn deref(&self) -> &[Vec3] {
-        match self {
-            LobeDirections::Inline(b, n) => &b[..*n],
-            LobeDirections::Heap(v) => v,
-        }
     }
 }
 

@@ -1,0 +1,200 @@
+//! The wavefront integrator renders the recursive renderer's images (every shipped
+//! scene, distribution effects included, at 1 and 2 threads), and a scene pays only for
+//! the queues and stages it needs, as `--stats-json` of the real binary shows.
+
+use packet_render::accel::{AccelKind, SceneAccel};
+use packet_render::integrator::{RenderOptions, wavefront, whitted};
+use packet_render::scene::load::load_scene;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn scenes() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    paths
+}
+
+/// Float summation order differs (the recursive renderer sums each node's children
+/// before weighting them, the wavefront adds weighted contributions to the camera
+/// sample as they arrive): a relative tolerance per channel, absolute near zero.
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= 1e-4 * a.abs().max(1.0)
+}
+
+#[test]
+fn wavefront_images_equal_recursive_images_on_every_shipped_scene() {
+    let mut compared = 0;
+    for path in scenes() {
+        let name = path.display().to_string();
+        let scene = load_scene(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let mut opts = RenderOptions::from_scene(&scene);
+        opts.width = 48;
+        opts.height = 36;
+        opts.seed = 3;
+        // The scene's own sample settings, capped small.
+        opts.spp = opts.spp.min(4);
+        opts.samples.shadow = opts.samples.shadow.min(4);
+        opts.samples.glossy = opts.samples.glossy.min(4);
+        opts.samples.lens = opts.samples.lens.min(2);
+        opts.samples.time = opts.samples.time.min(2);
+        let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let (reference, wave) = pool.install(|| {
+                (
+                    whitted::render(&scene, &accel, &opts),
+                    wavefront::render(&scene, &accel, &opts),
+                )
+            });
+            // Same rays, same samples: the ray trees are the same trees.
+            assert_eq!(wave.rays, reference.rays, "{name}, {threads} threads");
+            assert_eq!(
+                wave.samples_drawn, reference.samples_drawn,
+                "{name}, {threads} threads"
+            );
+            assert_eq!(
+                wave.nonfinite_samples, reference.nonfinite_samples,
+                "{name}"
+            );
+            for (i, (a, b)) in reference
+                .film
+                .pixels
+                .iter()
+                .zip(&wave.film.pixels)
+                .enumerate()
+            {
+                assert!(
+                    (0..3).all(|c| close(a[c], b[c])),
+                    "{name}, {threads} threads: pixel ({}, {}) recursive {a} wavefront {b}",
+                    i as u32 % opts.width,
+                    i as u32 / opts.width
+                );
+            }
+            assert!(wave.stages_ms.is_some() && reference.stages_ms.is_none());
+        }
+        compared += 1;
+    }
+    assert!(
+        compared >= 9,
+        "expected the shipped scenes, found {compared}"
+    );
+}
+
+#[test]
+fn wavefront_is_deterministic_across_thread_counts() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/glossy.toml");
+    let scene = load_scene(&path).unwrap();
+    let mut opts = RenderOptions::from_scene(&scene);
+    (opts.width, opts.height, opts.spp, opts.seed) = (40, 24, 2, 11);
+    let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+    let render = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let out = pool.install(|| wavefront::render(&scene, &accel, &opts));
+        out.film
+            .pixels
+            .iter()
+            .map(|p| p.to_array().map(f32::to_bits))
+            .collect::<Vec<_>>()
+    };
+    let one = render(1);
+    assert_eq!(one, render(2));
+    assert_eq!(one, render(3));
+}
+
+fn stats(scene: &str) -> serde_json::Value {
+    let dir = std::env::temp_dir().join(format!(
+        "packet-render-wavefront-{}-{}",
+        std::process::id(),
+        scene.replace('.', "_")
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("stats.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_packet-render"))
+        .args([
+            "render",
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("scenes")
+                .join(scene)
+                .to_str()
+                .unwrap(),
+            "-o",
+            dir.join("out.png").to_str().unwrap(),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "1",
+            "--shadow-samples",
+            "2",
+            "--integrator",
+            "wavefront",
+            "--quiet",
+            "--stats-json",
+            json.to_str().unwrap(),
+        ])
+        .output()
+        .expect("binary runs");
+    assert!(
+        o.status.success(),
+        "{scene}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let s = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    s
+}
+
+#[test]
+fn the_scene_decides_the_pipeline() {
+    // The Whitted room has glass and a mirror: refraction and reflection queues exist
+    // and carry rays; two point lights, no area light.
+    let s = stats("whitted.toml");
+    assert_eq!(s["integrator"], "wavefront");
+    let (rays, stages) = (&s["rays"], &s["stages_ms"]);
+    assert_eq!(rays["camera"], 32 * 24);
+    for kind in ["shadow", "reflection", "refraction"] {
+        assert!(rays[kind].as_u64().unwrap() > 0, "whitted: {kind} rays");
+        assert!(
+            stages[kind].as_f64().unwrap() >= 0.0,
+            "whitted: {kind} stage"
+        );
+    }
+    for absent in ["area_shadow", "glossy", "translucency"] {
+        assert!(stages.get(absent).is_none(), "whitted: {absent} stage");
+    }
+    for stage in ["camera", "trace", "shade"] {
+        assert!(stages[stage].as_f64().unwrap() >= 0.0, "whitted: {stage}");
+    }
+
+    // The sphereflake is mirror metal without glass: no refraction at all.
+    let s = stats("sphereflake.toml");
+    let (rays, stages) = (&s["rays"], &s["stages_ms"]);
+    assert_eq!(rays["refraction"], 0);
+    assert!(stages.get("refraction").is_none(), "sphereflake: {stages}");
+    assert!(rays["reflection"].as_u64().unwrap() > 0);
+    assert!(stages["reflection"].as_f64().is_some());
+
+    // Diffuse surfaces under area lights only: no reflection, refraction, glossy or
+    // translucency queue, no point-light shadow queue; area-light shadow rays only.
+    let s = stats("area_lights.toml");
+    let (rays, stages) = (&s["rays"], &s["stages_ms"]);
+    for kind in ["reflection", "refraction", "glossy", "translucency"] {
+        assert_eq!(rays[kind], 0, "area_lights: {kind} rays");
+        assert!(stages.get(kind).is_none(), "area_lights: {kind} stage");
+    }
+    assert!(stages.get("shadow").is_none(), "area_lights: {stages}");
+    assert!(stages["area_shadow"].as_f64().is_some());
+    assert!(rays["shadow"].as_u64().unwrap() > 0);
+}
