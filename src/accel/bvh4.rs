@@ -566,7 +566,9 @@ impl<P: Primitives> Bvh4<P> {
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
         loop {
-            let active = mask & cur_enter.le(tmax * L::splat(ROBUST_FAR_SCALE)).bitmask();
+            // Scaled once per step: entries are compared with it (see `Aabb::intersect`).
+            let tcull = tmax * L::splat(ROBUST_FAR_SCALE);
+            let active = mask & cur_enter.le(tcull).bitmask();
             if active == 0 {
                 // culled: every lane has a closer hit than this subtree's entry
             } else if active.count_ones() < PACKET_MIN_ACTIVE {
@@ -600,7 +602,7 @@ impl<P: Primitives> Bvh4<P> {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let (enter, bits) = p.child_test::<SHARED>(node, c, tmax);
+                    let (enter, bits) = p.child_test::<SHARED>(node, c, tcull);
                     if bits & active != 0 {
                         *slot = enter;
                         // insertion sort, far to near, by the representative lane's entry
@@ -721,9 +723,9 @@ impl<P: Primitives> Bvh4<P> {
         let mut stack: Stack<(u32, L)> = Stack::new();
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
+        let tcull = p.tmax * L::splat(ROBUST_FAR_SCALE);
         loop {
-            let active =
-                mask & !occluded & cur_enter.le(p.tmax * L::splat(ROBUST_FAR_SCALE)).bitmask();
+            let active = mask & !occluded & cur_enter.le(tcull).bitmask();
             if active == 0 {
             } else if active.count_ones() < PACKET_MIN_ACTIVE {
                 let mut m = active;
@@ -742,7 +744,7 @@ impl<P: Primitives> Bvh4<P> {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let (enter, bits) = p.child_test::<SHARED>(node, c, p.tmax);
+                    let (enter, bits) = p.child_test::<SHARED>(node, c, tcull);
                     if bits & active != 0 {
                         match first {
                             None => first = Some((node.children[c], enter)),
@@ -800,9 +802,10 @@ impl<P: Primitives> Bvh4<P> {
 }
 
 impl<L: Lanes> PacketRays<L> {
-    /// Slab test of child `c` for every lane: entry distances and hit bits.
+    /// Slab test of child `c` for every lane: entry distances and hit bits. `tcull` is
+    /// the closest hit so far, already scaled by `ROBUST_FAR_SCALE`.
     #[inline(always)]
-    fn child_test<const SHARED: bool>(&self, node: &Bvh4Node, c: usize, tmax: L) -> (L, u32) {
+    fn child_test<const SHARED: bool>(&self, node: &Bvh4Node, c: usize, tcull: L) -> (L, u32) {
         let p = &node.planes;
         let o = &self.shear.shared_origin;
         // With a shared origin, `plane - o` is one scalar per plane, broadcast: the same
@@ -818,9 +821,7 @@ impl<L: Lanes> PacketRays<L> {
         let f = |plane: usize, a: usize| rel(plane, a) * self.inv_far[a];
         let enter =
             d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
-        let exit = f(self.far[0], 0).minps(
-            f(self.far[1], 1).minps(f(self.far[2], 2).minps(tmax * L::splat(ROBUST_FAR_SCALE))),
-        );
+        let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tcull)));
         (enter, enter.le(exit).bitmask())
     }
 }
