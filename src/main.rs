@@ -174,7 +174,7 @@ struct RenderArgs {
     #[arg(long, default_value = "bvh4", value_parser = parse_accel)]
     accel: AccelKind,
     /// Integrator: `whitted` (recursive reference) or `wavefront` (ray queues, packets).
-    #[arg(long, default_value = "whitted", value_parser = parse_integrator)]
+    #[arg(long, default_value = "wavefront", value_parser = parse_integrator)]
     integrator: packet_render::integrator::IntegratorKind,
     /// Seed of the per-pixel random streams (same seed, same image, any thread count).
     #[arg(long, default_value_t = 0)]
