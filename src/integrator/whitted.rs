@@ -37,7 +37,7 @@ use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::Film;
 use crate::geometry::{Ray, offset_ray_origin_scaled};
-use crate::scene::{CameraFrame, LensFrame, Light, Scene};
+use crate::scene::{CameraFrame, LensFrame, Light, Scene, TriangleMesh};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -328,52 +328,39 @@ impl SurfaceInteraction {
     /// sphere) lands within a few ulps of the surface, which is what the
     /// Wächter-Binder offset of the next ray origin is sized for.
     pub fn new(scene: &Scene, ray: &Ray, hit: &SceneHit) -> Self {
+        // Moving primitives are placed at the ray's time; translation leaves normals
+        // unchanged, so both kinds of triangle (and of sphere) share one rule.
+        let on_triangle = |mesh: &TriangleMesh, t: usize, [a, b, c]: [Vec3; 3]| {
+            let p = (1.0 - hit.u - hit.v) * a + hit.u * b + hit.v * c;
+            let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
+            let (ng, ns) = (
+                mesh.geometric_normal(t),
+                mesh.shading_normal(t, hit.u, hit.v),
+            );
+            (p, ng, ns, mesh.material[t], scale)
+        };
+        let on_sphere = |center: Vec3, radius: f32, material: u32| {
+            let n = (ray.at(hit.t) - center).normalize_or_zero();
+            let scale = center.abs().max_element() + radius;
+            (center + radius * n, n, n, material, scale)
+        };
+        let (motion, spheres) = (&scene.motion, &scene.spheres);
         let (p, ng, ns, material, scale) = match hit.prim {
             PrimRef::Triangle(t) => {
-                let t = t as usize;
-                let mesh = &scene.mesh;
-                let [a, b, c] = mesh.corners(t);
-                let w = 1.0 - hit.u - hit.v;
-                let p = w * a + hit.u * b + hit.v * c;
-                let ng = mesh.geometric_normal(t);
-                let ns = mesh.shading_normal(t, hit.u, hit.v);
-                let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
-                (p, ng, ns, mesh.material[t], scale)
+                on_triangle(&scene.mesh, t as usize, scene.mesh.corners(t as usize))
             }
             PrimRef::Sphere(s) => {
                 let s = s as usize;
-                let center = scene.spheres.center(s);
-                let radius = scene.spheres.radius[s];
-                let n = (ray.at(hit.t) - center).normalize_or_zero();
-                let scale = center.abs().max_element() + radius;
-                (center + radius * n, n, n, scene.spheres.material[s], scale)
+                on_sphere(spheres.center(s), spheres.radius[s], spheres.material[s])
             }
-            // Moving primitives are placed at the ray's time; translation leaves
-            // normals unchanged.
             PrimRef::MovingTriangle(t) => {
                 let t = t as usize;
-                let mesh = &scene.motion.mesh;
-                let [a, b, c] = scene.motion.triangle_corners(t, ray.time);
-                let w = 1.0 - hit.u - hit.v;
-                let p = w * a + hit.u * b + hit.v * c;
-                let ng = mesh.geometric_normal(t);
-                let ns = mesh.shading_normal(t, hit.u, hit.v);
-                let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
-                (p, ng, ns, mesh.material[t], scale)
+                on_triangle(&motion.mesh, t, motion.triangle_corners(t, ray.time))
             }
             PrimRef::MovingSphere(s) => {
                 let s = s as usize;
-                let center = scene.motion.sphere_center(s, ray.time);
-                let radius = scene.motion.spheres.radius[s];
-                let n = (ray.at(hit.t) - center).normalize_or_zero();
-                let scale = center.abs().max_element() + radius;
-                (
-                    center + radius * n,
-                    n,
-                    n,
-                    scene.motion.spheres.material[s],
-                    scale,
-                )
+                let center = motion.sphere_center(s, ray.time);
+                on_sphere(center, motion.spheres.radius[s], motion.spheres.material[s])
             }
         };
         // A degenerate triangle or a hit at a sphere's centre has no normal; facing the

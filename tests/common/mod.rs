@@ -63,7 +63,14 @@ pub fn bumpy_sphere(rings: usize, segments: usize, radius: f32) -> (Vec<Vec3>, V
         }
     }
     pos.push(Vec3::new(0.0, -radius, 0.0));
-    let south = (pos.len() - 1) as u32;
+    let tris = uv_sphere_triangles(rings, segments);
+    (pos, tris)
+}
+
+/// Triangles of a UV sphere whose vertices are the north pole, `rings - 1` rings of
+/// `segments` vertices from north to south, then the south pole; the seam is shared.
+pub fn uv_sphere_triangles(rings: usize, segments: usize) -> Vec<[u32; 3]> {
+    let south = (1 + (rings - 1) * segments) as u32;
     let ring = |r: usize, s: usize| (1 + (r - 1) * segments + s % segments) as u32;
     let mut tris = Vec::new();
     for s in 0..segments {
@@ -82,7 +89,7 @@ pub fn bumpy_sphere(rings: usize, segments: usize, radius: f32) -> (Vec<Vec3>, V
             tris.push([a, d, c]);
         }
     }
-    (pos, tris)
+    tris
 }
 
 pub fn triangles_of(pos: &[Vec3], tris: &[[u32; 3]]) -> Triangles {

@@ -142,25 +142,7 @@ pub fn jittered_sphere(rings: usize, segments: usize, jitter: f32, seed: u64) ->
         }
     }
     pos.push(-Vec3::Y);
-    let south = (pos.len() - 1) as u32;
-    let ring = |r: usize, s: usize| (1 + (r - 1) * segments + s % segments) as u32;
-    let mut tris = Vec::new();
-    for s in 0..segments {
-        tris.push([0, ring(1, s + 1), ring(1, s)]);
-        tris.push([south, ring(rings - 1, s), ring(rings - 1, s + 1)]);
-    }
-    for r in 1..rings - 1 {
-        for s in 0..segments {
-            let (a, b, c, d) = (
-                ring(r, s),
-                ring(r, s + 1),
-                ring(r + 1, s),
-                ring(r + 1, s + 1),
-            );
-            tris.push([a, b, d]);
-            tris.push([a, d, c]);
-        }
-    }
+    let tris = crate::common::uv_sphere_triangles(rings, segments);
     Mesh {
         name: format!("jittered sphere {rings}x{segments}"),
         pos,
