@@ -133,6 +133,13 @@ pub(super) enum BuildNode {
 }
 
 impl BuildNode {
+    /// Surface area of the node's box.
+    pub(super) fn area(&self) -> f32 {
+        match self {
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.area(),
+        }
+    }
+
     pub(super) fn bounds(&self) -> Aabb {
         match self {
             BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.to_aabb(),
@@ -426,7 +433,7 @@ impl Builder<'_> {
     /// Bins centroids on all three axes and sweeps for the cheapest plane.
     fn best_split(&self, ids: &[u32], nb: &NodeBounds) -> Option<Split> {
         // Small nodes need few bins: at most two per primitive.
-        let bins_n = self.opts.bins.min(2 * ids.len()).max(2);
+        let bins_n = self.opts.bins.min(ids.len().max(4));
         let cb = &nb.centroids;
         let scale = Self::scale(cb, bins_n);
         if ids.len() >= PARALLEL_THRESHOLD * 4 {

@@ -221,21 +221,24 @@ impl Collapse<'_> {
             };
             return self.leaf(*start, *count);
         };
-        let mut kids: Vec<&BuildNode> = vec![&children[0], &children[1]];
-        while kids.len() < 4 {
-            let open = kids
-                .iter()
-                .enumerate()
-                .filter(|(_, k)| matches!(k, BuildNode::Interior { .. }))
-                .max_by(|a, b| a.1.bounds().area().total_cmp(&b.1.bounds().area()))
-                .map(|(pos, _)| pos);
+        // Up to four children in a fixed array (no allocation per node); opening a child
+        // moves the last one into its slot, then appends the grandchildren.
+        let mut kids: [&BuildNode; 4] = [&children[0], &children[1], &children[1], &children[1]];
+        let mut n = 2;
+        while n < 4 {
+            let open = (0..n)
+                .filter(|&i| matches!(kids[i], BuildNode::Interior { .. }))
+                .max_by(|&a, &b| kids[a].area().total_cmp(&kids[b].area()));
             let Some(pos) = open else { break };
-            let BuildNode::Interior { children, .. } = kids.swap_remove(pos) else {
+            let BuildNode::Interior { children, .. } = kids[pos] else {
                 unreachable!()
             };
-            kids.push(&children[0]);
-            kids.push(&children[1]);
+            kids[pos] = kids[n - 1];
+            kids[n - 1] = &children[0];
+            kids[n] = &children[1];
+            n += 1;
         }
+        let kids = &kids[..n];
         let index = self.nodes.len();
         self.nodes.push(Bvh4Node {
             planes: [
