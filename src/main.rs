@@ -82,6 +82,9 @@ struct ConvergeArgs {
     /// SVG plot, log-log RMSE against seconds.
     #[arg(long, default_value = "convergence.svg")]
     plot: PathBuf,
+    /// Acceleration structure.
+    #[arg(long, default_value = "bvh4", value_parser = parse_accel)]
+    accel: AccelKind,
 }
 
 #[derive(clap::Args)]
@@ -337,6 +340,7 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
         reference_eye: args.reference_eye,
         reference_shadow: args.reference_shadow,
         budgets: args.budgets,
+        accel: args.accel,
         ..Default::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()
