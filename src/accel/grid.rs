@@ -310,31 +310,6 @@ mod tests {
     }
 
     #[test]
-    fn empty_and_single() {
-        let g = Grid::build(Triangles::default());
-        assert!(g.closest_hit(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
-        assert!(!g.any_hit(&Ray::new(Vec3::ZERO, Vec3::X)));
-        let one = Grid::build(Triangles::from_corners(&[tri(
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-        )]));
-        let h = one
-            .closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::Z))
-            .unwrap();
-        assert_eq!((h.prim, h.t), (0, 2.0));
-        // invalid rays hit nothing
-        assert!(
-            one.closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::ZERO))
-                .is_none()
-        );
-        assert!(
-            one.closest_hit(&Ray::new(Vec3::new(f32::NAN, 0.1, -2.0), Vec3::Z))
-                .is_none()
-        );
-    }
-
-    #[test]
     fn identical_triangles_bounded_memory() {
         let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
         let g = Grid::build(Triangles::from_corners(&vec![t; 10_000]));

@@ -372,26 +372,6 @@ mod tests {
     }
 
     #[test]
-    fn empty_and_single() {
-        let k = KdTree::build(Triangles::default());
-        assert!(k.closest_hit(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
-        assert!(!k.any_hit(&Ray::new(Vec3::ZERO, Vec3::X)));
-        let one = KdTree::build(Triangles::from_corners(&[tri(
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-        )]));
-        let h = one
-            .closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::Z))
-            .unwrap();
-        assert_eq!((h.prim, h.t), (0, 2.0));
-        assert!(
-            one.closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::ZERO))
-                .is_none()
-        );
-    }
-
-    #[test]
     fn identical_triangles_terminate() {
         let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
         let k = KdTree::build(Triangles::from_corners(&vec![t; 10_000]));

@@ -328,26 +328,6 @@ mod tests {
     }
 
     #[test]
-    fn empty_and_single() {
-        let o = Octree::build(Triangles::default());
-        assert!(o.closest_hit(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
-        assert!(!o.any_hit(&Ray::new(Vec3::ZERO, Vec3::X)));
-        let one = Octree::build(Triangles::from_corners(&[tri(
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-        )]));
-        let h = one
-            .closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::Z))
-            .unwrap();
-        assert_eq!((h.prim, h.t), (0, 2.0));
-        assert!(
-            one.closest_hit(&Ray::new(Vec3::new(0.1, 0.1, -2.0), Vec3::ZERO))
-                .is_none()
-        );
-    }
-
-    #[test]
     fn identical_triangles_terminate() {
         let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
         let o = Octree::build(Triangles::from_corners(&vec![t; 10_000]));
