@@ -17,7 +17,7 @@ use super::bvh2::{BuildNode, build_tree};
 use super::{Accel, AccelInfo, Bvh2BuildOptions, Primitives, Triangles};
 use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::kernels::{
-    PacketShear, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
+    PacketShear, RayLanes, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
 };
 use crate::simd::{F4, Lanes, PACKET_WIDTH, Packet};
 use glam::Vec3;
@@ -502,6 +502,8 @@ impl<P: Primitives> Bvh4<P> {
 
 /// Packet traversal over lanes of type `L`.
 struct PacketRays<L: Lanes> {
+    /// Origins, directions and `tmin` as lanes, for scalar-leaf primitives' lane tests.
+    lanes: RayLanes<L>,
     o: [L; 3],
     inv: [L; 3],
     inv_far: [L; 3],
@@ -528,7 +530,7 @@ impl<P: Primitives> Bvh4<P> {
     fn packet_closest<L: Lanes>(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         let setup = PacketSetup::<L>::new(rays);
         out.fill(None);
-        if !setup.coherent() || !matches!(self.leaves, Leaves::Triangles(_)) {
+        if !setup.coherent() {
             for_each_bit(setup.valid, |i| out[i] = self.closest_single(&rays[i]));
             return;
         }
@@ -557,9 +559,6 @@ impl<P: Primitives> Bvh4<P> {
         rays: &[Ray],
         mask: u32,
     ) -> PacketHits<L> {
-        let Leaves::Triangles(groups) = &self.leaves else {
-            unreachable!("packets need triangle leaves")
-        };
         let mut tmax = p.tmax;
         let mut res = PacketHits::<L> {
             t: L::splat(0.0).to_array(),
@@ -633,7 +632,19 @@ impl<P: Primitives> Bvh4<P> {
                     cur_enter = enters[c];
                     continue;
                 }
-            } else {
+            } else if let Leaves::Scalar { prims, ids } = &self.leaves {
+                for k in leaf_range(cur) {
+                    let (t, u, v, bits) = prims.intersect_lanes(k, &p.lanes, tmax, active, rays);
+                    if bits != 0 {
+                        let sel = L::mask_from_bits(bits);
+                        tmax = L::select(sel, t, tmax);
+                        tu = L::select(sel, u, tu);
+                        tv = L::select(sel, v, tv);
+                        res.hit |= bits;
+                        for_each_bit(bits, |i| res.prim[i] = ids[k]);
+                    }
+                }
+            } else if let Leaves::Triangles(groups) = &self.leaves {
                 for g in &groups[leaf_range(cur)] {
                     for lane in 0..4 {
                         if g.ids[lane] == u32::MAX {
@@ -701,7 +712,7 @@ impl<P: Primitives> Bvh4<P> {
     fn packet_any<L: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
         let setup = PacketSetup::<L>::new(rays);
         out.fill(false);
-        if !setup.coherent() || !matches!(self.leaves, Leaves::Triangles(_)) {
+        if !setup.coherent() {
             for_each_bit(setup.valid, |i| out[i] = self.any_single(&rays[i]));
             return;
         }
@@ -724,9 +735,6 @@ impl<P: Primitives> Bvh4<P> {
         rays: &[Ray],
         mask: u32,
     ) -> u32 {
-        let Leaves::Triangles(groups) = &self.leaves else {
-            unreachable!("packets need triangle leaves")
-        };
         let mut occluded = 0u32;
         let mut stack: Stack<(u32, L)> = Stack::new();
         let mut cur = self.root;
@@ -765,7 +773,15 @@ impl<P: Primitives> Bvh4<P> {
                     cur_enter = e;
                     continue;
                 }
-            } else {
+            } else if let Leaves::Scalar { prims, .. } = &self.leaves {
+                for k in leaf_range(cur) {
+                    let live = active & !occluded;
+                    occluded |= prims.intersect_lanes(k, &p.lanes, p.tmax, live, rays).3;
+                    if active & !occluded == 0 {
+                        break;
+                    }
+                }
+            } else if let Leaves::Triangles(groups) = &self.leaves {
                 'groups: for g in &groups[leaf_range(cur)] {
                     for lane in 0..4 {
                         if g.ids[lane] == u32::MAX {
@@ -980,6 +996,11 @@ impl<L: Lanes> PacketSetup<L> {
         let sz = L::splat(1.0) / self.d[kz];
         let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
         PacketRays {
+            lanes: RayLanes {
+                o: self.o,
+                d: self.d,
+                tmin: self.tmin,
+            },
             o: self.o,
             inv: self.inv,
             inv_far: self.inv.map(|x| x * L::splat(ROBUST_FAR_SCALE)),

@@ -1,5 +1,7 @@
-use crate::geometry::{Aabb, PrimHit, RayQuery, intersect_sphere, intersect_triangle};
+use crate::geometry::{Aabb, PrimHit, Ray, RayQuery, intersect_sphere, intersect_triangle};
 use crate::scene::{SphereSet, TriangleMesh};
+use crate::simd::Lanes;
+use crate::simd::kernels::{RayLanes, sphere_lanes};
 use glam::Vec3;
 
 /// A set of primitives an acceleration structure can be built over.
@@ -25,6 +27,32 @@ pub trait Primitives: Send + Sync + Sized {
         let p = self.bounds(i);
         p.min.cmple(b.max).all() && b.min.cmple(p.max).all()
     }
+    /// Primitive `i` against the lanes of a packet (`active` lanes only): the closest
+    /// hit per lane in `(tmin, tmax)` as `(t, u, v, hit bits)`. The default runs the
+    /// scalar test lane by lane; sets with a SIMD twin override it.
+    fn intersect_lanes<L: Lanes>(
+        &self,
+        i: usize,
+        lanes: &RayLanes<L>,
+        tmax: L,
+        active: u32,
+        rays: &[Ray],
+    ) -> (L, L, L, u32) {
+        let _ = lanes;
+        let tm = tmax.to_array();
+        let (mut t, mut u, mut v) = (tm, L::splat(0.0).to_array(), L::splat(0.0).to_array());
+        let mut bits = 0;
+        for lane in (0..L::WIDTH).filter(|l| active >> l & 1 == 1) {
+            let hit =
+                RayQuery::new(&rays[lane]).and_then(|q| self.intersect(i, &q, tm.as_ref()[lane]));
+            if let Some(h) = hit {
+                (t.as_mut()[lane], u.as_mut()[lane], v.as_mut()[lane]) = (h.t, h.u, h.v);
+                bits |= 1 << lane;
+            }
+        }
+        (L::from_array(t), L::from_array(u), L::from_array(v), bits)
+    }
+
     /// The set as triangles, for structures with packed SIMD triangle leaves.
     fn as_triangles(&self) -> Option<&Triangles> {
         None
@@ -136,6 +164,20 @@ impl Primitives for Spheres {
             u: 0.0,
             v: 0.0,
         })
+    }
+
+    #[inline]
+    fn intersect_lanes<L: Lanes>(
+        &self,
+        i: usize,
+        lanes: &RayLanes<L>,
+        tmax: L,
+        active: u32,
+        _rays: &[Ray],
+    ) -> (L, L, L, u32) {
+        let (t, bits) = sphere_lanes(lanes, self.center[i], self.radius[i], tmax, active);
+        let zero = L::splat(0.0);
+        (t, zero, zero, bits)
     }
 
     fn permute(&self, order: &[u32]) -> Self {

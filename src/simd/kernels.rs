@@ -221,3 +221,50 @@ pub fn triangle_packet<L: Lanes, const SHARED: bool>(
         & t.lt(tmax).bitmask();
     (t, v * rcp, w * rcp, bits, edge)
 }
+
+/// A packet's rays as lanes: origins, directions and the start of their intervals.
+#[derive(Clone, Copy)]
+pub struct RayLanes<L: Lanes> {
+    pub o: [L; 3],
+    pub d: [L; 3],
+    pub tmin: L,
+}
+
+/// A packet against one sphere: the SIMD twin of `geometry::intersect_sphere`, the
+/// same operations in the same order (the negation is a multiplication by -1, which
+/// keeps the sign of zero as `-x` does), so every lane equals the scalar answer.
+/// Returns the nearest root in `(tmin, tmax)` per lane and the bits of the lanes of
+/// `active` that have one.
+#[inline(always)]
+pub fn sphere_lanes<L: Lanes>(
+    r: &RayLanes<L>,
+    center: Vec3,
+    radius: f32,
+    tmax: L,
+    active: u32,
+) -> (L, u32) {
+    let dot = |a: &[L; 3], b: &[L; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let f = [
+        r.o[0] - L::splat(center.x),
+        r.o[1] - L::splat(center.y),
+        r.o[2] - L::splat(center.z),
+    ];
+    let a = dot(&r.d, &r.d);
+    let b = L::splat(-1.0) * dot(&f, &r.d);
+    let ba = b / a;
+    let l = [f[0] + ba * r.d[0], f[1] + ba * r.d[1], f[2] + ba * r.d[2]];
+    let r2 = L::splat(radius * radius);
+    let disc = a * (r2 - dot(&l, &l));
+    let real = L::splat(0.0).le(disc).bitmask(); // false for NaN, as in the scalar test
+    let c = dot(&f, &f) - r2;
+    // copysign(sqrt(disc), b): the root is +0 or positive, so OR-ing b's sign bit in is exact.
+    let q = b + (disc.sqrt() | (b & L::splat(-0.0)));
+    let nonzero = !q.eq(L::splat(0.0)).bitmask();
+    let (t0, t1) = (c / q, q / a);
+    let swap = t0.gt(t1);
+    let (lo, hi) = (L::select(swap, t1, t0), L::select(swap, t0, t1));
+    let first = lo.gt(r.tmin) & lo.lt(tmax);
+    let second = hi.gt(r.tmin) & hi.lt(tmax);
+    let t = L::select(first, lo, hi);
+    (t, (first | second).bitmask() & real & nonzero & active)
+}
