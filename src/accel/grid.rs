@@ -1,9 +1,11 @@
 //! Uniform grid with 3D-DDA traversal (Amanatides & Woo, "A Fast Voxel Traversal
 //! Algorithm for Ray Tracing", Eurographics 1987) and per-ray mailboxing.
 
-use super::spatial::{Mailbox, TraversalCounts, clip, conservative_pad, grown, moves_along};
-use super::{Accel, AccelInfo, Primitives};
-use crate::geometry::{Aabb, Hit, Ray, RayQuery};
+use super::spatial::{
+    CountedTraversal, Mailbox, TraversalCounts, clip, conservative_pad, grown, moves_along,
+};
+use super::{AccelInfo, Primitives};
+use crate::geometry::{Aabb, Hit, RayQuery};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -257,13 +259,6 @@ impl<P: Primitives> Grid<P> {
         let x = self.bounds.min[a] + plane as f32 * self.cell_size[a];
         (x - q.origin[a]) * q.inv_dir[a]
     }
-
-    /// Closest hit with traversal counts (the counting twin of `closest_hit`).
-    pub fn closest_hit_counted(&self, ray: &Ray) -> (Option<Hit>, TraversalCounts) {
-        let mut counts = TraversalCounts::default();
-        let hit = RayQuery::new(ray).and_then(|q| self.traverse::<true, false>(&q, &mut counts));
-        (hit, counts)
-    }
 }
 
 /// Cell containing `p`, clamped to the grid (NaN casts to 0, also clamped).
@@ -278,32 +273,27 @@ fn cell_of<R: Copy + Into<i64>>(p: Vec3, min: Vec3, inv: Vec3, res: [R; 3]) -> [
     c
 }
 
-impl<P: Primitives> Accel for Grid<P> {
-    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        let q = RayQuery::new(ray)?;
-        self.traverse::<false, false>(&q, &mut TraversalCounts::default())
+impl<P: Primitives> CountedTraversal for Grid<P> {
+    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+        &self,
+        q: &RayQuery,
+    ) -> (Option<Hit>, TraversalCounts) {
+        let mut counts = TraversalCounts::default();
+        let hit = self.traverse::<COUNT, ANY>(q, &mut counts);
+        (hit, counts)
     }
 
-    fn any_hit(&self, ray: &Ray) -> bool {
-        RayQuery::new(ray).is_some_and(|q| {
-            self.traverse::<false, true>(&q, &mut TraversalCounts::default())
-                .is_some()
-        })
-    }
-
-    fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
-        Some(self.closest_hit_counted(ray).1)
-    }
-
-    fn info(&self) -> AccelInfo {
-        self.info.clone()
+    fn build_info(&self) -> &AccelInfo {
+        &self.info
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::Accel;
     use crate::accel::{BruteForce, Spheres, Triangles};
+    use crate::geometry::Ray;
 
     fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [Vec3; 3] {
         [Vec3::from(a), Vec3::from(b), Vec3::from(c)]

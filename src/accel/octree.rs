@@ -9,9 +9,11 @@
 //! `max_duplication` (primitives that all straddle the centre, e.g. 10^4 identical
 //! triangles, would otherwise be copied into all eight children at every level).
 
-use super::spatial::{TraversalCounts, boxes_overlap, clip, conservative_pad, grown, moves_along};
-use super::{Accel, AccelInfo, Primitives};
-use crate::geometry::{Aabb, Hit, Ray, RayQuery};
+use super::spatial::{
+    CountedTraversal, TraversalCounts, boxes_overlap, clip, conservative_pad, grown, moves_along,
+};
+use super::{AccelInfo, Primitives};
+use crate::geometry::{Aabb, Hit, RayQuery};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -290,38 +292,27 @@ impl<P: Primitives> Octree<P> {
             t = exit;
         }
     }
-
-    /// Closest hit with traversal counts.
-    pub fn closest_hit_counted(&self, ray: &Ray) -> (Option<Hit>, TraversalCounts) {
-        match RayQuery::new(ray) {
-            Some(q) => self.query::<true, false>(&q),
-            None => (None, TraversalCounts::default()),
-        }
-    }
 }
 
-impl<P: Primitives> Accel for Octree<P> {
-    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.query::<false, false>(&RayQuery::new(ray)?).0
+impl<P: Primitives> CountedTraversal for Octree<P> {
+    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+        &self,
+        q: &RayQuery,
+    ) -> (Option<Hit>, TraversalCounts) {
+        self.query::<COUNT, ANY>(q)
     }
 
-    fn any_hit(&self, ray: &Ray) -> bool {
-        RayQuery::new(ray).is_some_and(|q| self.query::<false, true>(&q).0.is_some())
-    }
-
-    fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
-        Some(self.closest_hit_counted(ray).1)
-    }
-
-    fn info(&self) -> AccelInfo {
-        self.info.clone()
+    fn build_info(&self) -> &AccelInfo {
+        &self.info
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::Accel;
     use crate::accel::{BruteForce, Triangles};
+    use crate::geometry::Ray;
 
     fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [Vec3; 3] {
         [Vec3::from(a), Vec3::from(b), Vec3::from(c)]

@@ -9,7 +9,8 @@
 //! surface lies within rounding distance of a region is in it, and the traversal may
 //! round cell boundaries either way without ever skipping a primitive the ray hits.
 
-use crate::geometry::{Aabb, RayQuery};
+use super::{Accel, AccelInfo};
+use crate::geometry::{Aabb, Hit, Ray, RayQuery};
 use glam::Vec3;
 
 /// Traversal work of one ray: node (cell, voxel, BVH node) visits and primitive tests.
@@ -172,6 +173,45 @@ pub fn triangle_overlaps_box(v0: Vec3, v1: Vec3, v2: Vec3, b: &Aabb) -> bool {
 pub fn sphere_overlaps_box(center: Vec3, radius: f32, b: &Aabb) -> bool {
     let d = (b.min - center).max(Vec3::ZERO) + (center - b.max).max(Vec3::ZERO);
     d.length_squared() <= radius * radius * (1.0 + 1e-5)
+}
+
+/// What a spatial subdivision implements: one traversal with compile-time switches for
+/// counting (`COUNT`) and any-hit (`ANY`). The `Accel` entry points and the counting
+/// twin are written once, below, for all three structures.
+pub(crate) trait CountedTraversal: Send + Sync {
+    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+        &self,
+        q: &RayQuery,
+    ) -> (Option<Hit>, TraversalCounts);
+
+    fn build_info(&self) -> &AccelInfo;
+
+    /// Closest hit with traversal counts (the counting twin of `closest_hit`).
+    fn closest_hit_counted(&self, ray: &Ray) -> (Option<Hit>, TraversalCounts) {
+        match RayQuery::new(ray) {
+            Some(q) => self.traverse_counted::<true, false>(&q),
+            None => (None, TraversalCounts::default()),
+        }
+    }
+}
+
+impl<T: CountedTraversal> Accel for T {
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.traverse_counted::<false, false>(&RayQuery::new(ray)?)
+            .0
+    }
+
+    fn any_hit(&self, ray: &Ray) -> bool {
+        RayQuery::new(ray).is_some_and(|q| self.traverse_counted::<false, true>(&q).0.is_some())
+    }
+
+    fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
+        Some(self.closest_hit_counted(ray).1)
+    }
+
+    fn info(&self) -> AccelInfo {
+        self.build_info().clone()
+    }
 }
 
 #[cfg(test)]
