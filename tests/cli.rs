@@ -206,7 +206,7 @@ fn bench_prints_the_protocol_fields_and_modes_agree() {
         .lines()
         .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
         .collect();
-    assert_eq!(rows.len(), 9, "3 modes x 3 workloads");
+    assert_eq!(rows.len(), 15, "5 modes x 3 workloads");
     let fields = [
         "tracer",
         "mode",
@@ -271,6 +271,7 @@ fn accel_compare_prints_one_json_row_per_structure_with_equal_checksums() {
             "bruteforce",
             "bvh2",
             "bvh4",
+            "bvh8",
             "grid",
             "grid-nomailbox",
             "octree",

@@ -1,12 +1,13 @@
-//! Scalar-vs-SIMD equivalence: the scalar BVH2 traversal (the oracle), the BVH4
-//! single-ray SIMD kernel and the BVH4 packet kernel get the same rays and must return
-//! the same primitive, t within 1e-5 relative, and the same occlusion answer.
+//! Scalar-vs-SIMD equivalence: the scalar BVH2 traversal (the oracle), and the
+//! single-ray SIMD kernel and the packet kernel of both the BVH4 and the BVH8, get the
+//! same rays and must return the same primitive, t within 1e-5 relative, and the same
+//! occlusion answer.
 
 mod common;
 
 use common::*;
 use glam::Vec3;
-use packet_render::accel::{Accel, Bvh2, Bvh4, Primitives, Triangles};
+use packet_render::accel::{Accel, Bvh, Bvh2, NodeWidth, Primitives, Triangles, Width};
 use packet_render::geometry::{Aabb, Hit, Ray};
 use packet_render::scene::Camera;
 
@@ -26,34 +27,43 @@ fn same_hit(a: Option<Hit>, b: Option<Hit>) -> bool {
     }
 }
 
-/// Runs all three paths on `rays` (closest hit and occlusion) and compares.
+/// Runs the scalar path and both widths' single-ray and packet paths on `rays` (closest
+/// hit and occlusion) and compares.
 fn check(name: &str, tris: &Triangles, rays: &[Ray]) {
+    check_width::<4>(name, tris, rays);
+    check_width::<8>(name, tris, rays);
+}
+
+fn check_width<const N: usize>(name: &str, tris: &Triangles, rays: &[Ray])
+where
+    Width<N>: NodeWidth,
+{
     let scalar = Bvh2::build(tris.clone());
-    let bvh4 = Bvh4::build(tris.clone());
+    let bvhn = Bvh::<_, N>::build(tris.clone());
     let mut packet = vec![None; rays.len()];
-    bvh4.closest_hit_batch(rays, &mut packet);
+    bvhn.closest_hit_batch(rays, &mut packet);
     let mut packet_occ = vec![false; rays.len()];
-    bvh4.any_hit_batch(rays, &mut packet_occ);
+    bvhn.any_hit_batch(rays, &mut packet_occ);
     let mut bad = Vec::new();
     for (i, r) in rays.iter().enumerate() {
         let want = scalar.closest_hit(r);
-        let single = bvh4.closest_single(r);
+        let single = bvhn.closest_single(r);
         if !same_hit(want, single) {
             bad.push(format!(
-                "ray {i}: scalar {want:?} vs bvh4-single {single:?}"
+                "ray {i}: scalar {want:?} vs bvh{N}-single {single:?}"
             ));
         }
         if !same_hit(want, packet[i]) {
             bad.push(format!(
-                "ray {i}: scalar {want:?} vs bvh4-packet {:?}",
+                "ray {i}: scalar {want:?} vs bvh{N}-packet {:?}",
                 packet[i]
             ));
         }
         let occ = scalar.any_hit(r);
-        if occ != bvh4.any_single(r) || occ != packet_occ[i] {
+        if occ != bvhn.any_single(r) || occ != packet_occ[i] {
             bad.push(format!(
-                "ray {i}: occlusion scalar {occ}, single {}, packet {}",
-                bvh4.any_single(r),
+                "ray {i}: bvh{N} occlusion scalar {occ}, single {}, packet {}",
+                bvhn.any_single(r),
                 packet_occ[i]
             ));
         }
@@ -137,7 +147,15 @@ fn secondary_rays_agree_and_shadow_rays_stop_short() {
     check("on-surface", &tris, &on_surface);
 
     // A ray stopped at 0.99 of its hit distance is unoccluded on every path.
-    let bvh4 = Bvh4::build(tris.clone());
+    stops_short::<4>(&tris, &oracle, &cam);
+    stops_short::<8>(&tris, &oracle, &cam);
+}
+
+fn stops_short<const N: usize>(tris: &Triangles, oracle: &Bvh2<Triangles>, cam: &[Ray])
+where
+    Width<N>: NodeWidth,
+{
+    let bvhn = Bvh::<_, N>::build(tris.clone());
     let short: Vec<Ray> = cam
         .iter()
         .filter_map(|r| {
@@ -148,10 +166,10 @@ fn secondary_rays_agree_and_shadow_rays_stop_short() {
         })
         .collect();
     let mut occ = vec![true; short.len()];
-    bvh4.any_hit_batch(&short, &mut occ);
+    bvhn.any_hit_batch(&short, &mut occ);
     for (r, o) in short.iter().zip(&occ) {
         assert!(
-            !o && !bvh4.any_single(r) && !oracle.any_hit(r),
+            !o && !bvhn.any_single(r) && !oracle.any_hit(r),
             "ray ending at 0.99 t reported occluded"
         );
     }
@@ -168,12 +186,20 @@ fn random_and_axis_parallel_rays_agree() {
 /// of their packet untouched.
 #[test]
 fn invalid_lanes_never_hit_or_poison_neighbours() {
+    invalid_lanes::<4>();
+    invalid_lanes::<8>();
+}
+
+fn invalid_lanes<const N: usize>()
+where
+    Width<N>: NodeWidth,
+{
     let tris = mesh();
     let b = bounds_of(&tris);
     let rays = camera_rays(&b, 32, 32);
-    let bvh4 = Bvh4::build(tris.clone());
+    let bvhn = Bvh::<_, N>::build(tris.clone());
     let mut clean = vec![None; rays.len()];
-    bvh4.closest_hit_batch(&rays, &mut clean);
+    bvhn.closest_hit_batch(&rays, &mut clean);
     let mut poisoned = rays.clone();
     let bad = [
         Ray::new(Vec3::NAN, Vec3::Z),
@@ -198,9 +224,9 @@ fn invalid_lanes_never_hit_or_poison_neighbours() {
         poisoned[i] = bad[k % bad.len()];
     }
     let mut got = vec![None; rays.len()];
-    bvh4.closest_hit_batch(&poisoned, &mut got);
+    bvhn.closest_hit_batch(&poisoned, &mut got);
     let mut occ = vec![true; rays.len()];
-    bvh4.any_hit_batch(&poisoned, &mut occ);
+    bvhn.any_hit_batch(&poisoned, &mut occ);
     for i in 0..rays.len() {
         if i % 5 == 0 {
             assert!(
@@ -218,6 +244,14 @@ fn invalid_lanes_never_hit_or_poison_neighbours() {
 /// hits must match exactly (same sphere, bit-identical t) and so must occlusion.
 #[test]
 fn sphere_packets_match_the_scalar_test() {
+    sphere_packets::<4>();
+    sphere_packets::<8>();
+}
+
+fn sphere_packets<const N: usize>()
+where
+    Width<N>: NodeWidth,
+{
     use packet_render::accel::Spheres;
     use packet_render::scene::{Material, SceneBuilder, procedural};
     let mut b = SceneBuilder::new();
@@ -228,11 +262,11 @@ fn sphere_packets_match_the_scalar_test() {
     let mut rays = camera_rays(&bounds, 64, 64);
     rays.extend(random_rays(&bounds, 4096, 21));
     let scalar = Bvh2::build(spheres.clone());
-    let bvh4 = Bvh4::build(spheres);
+    let bvhn = Bvh::<_, N>::build(spheres);
     let mut packet = vec![None; rays.len()];
-    bvh4.closest_hit_batch(&rays, &mut packet);
+    bvhn.closest_hit_batch(&rays, &mut packet);
     let mut occ = vec![false; rays.len()];
-    bvh4.any_hit_batch(&rays, &mut occ);
+    bvhn.any_hit_batch(&rays, &mut occ);
     let mut hits = 0;
     for (i, r) in rays.iter().enumerate() {
         let want = scalar.closest_hit(r);
@@ -242,7 +276,7 @@ fn sphere_packets_match_the_scalar_test() {
             "ray {i}"
         );
         assert_eq!(
-            bvh4.closest_single(r).map(|h| (h.prim, h.t)),
+            bvhn.closest_single(r).map(|h| (h.prim, h.t)),
             want.map(|h| (h.prim, h.t)),
             "ray {i}"
         );

@@ -7,7 +7,7 @@
 
 mod bruteforce;
 mod bvh2;
-mod bvh4;
+mod bvhn;
 mod grid;
 mod kdtree;
 mod moving;
@@ -17,7 +17,7 @@ pub mod spatial;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
-pub use bvh4::{Bvh4, Bvh4Node, PACKET_MIN_ACTIVE};
+pub use bvhn::{Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, Width};
 pub use grid::{Grid, GridOptions};
 pub use kdtree::{KdNode, KdTree, KdTreeOptions};
 pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};
@@ -86,6 +86,7 @@ pub enum AccelKind {
     BruteForce,
     Bvh2,
     Bvh4,
+    Bvh8,
     Grid,
     Octree,
     KdTree,
@@ -96,6 +97,7 @@ impl AccelKind {
         AccelKind::BruteForce,
         AccelKind::Bvh2,
         AccelKind::Bvh4,
+        AccelKind::Bvh8,
         AccelKind::Grid,
         AccelKind::Octree,
         AccelKind::KdTree,
@@ -106,6 +108,7 @@ impl AccelKind {
             AccelKind::BruteForce => "bruteforce",
             AccelKind::Bvh2 => "bvh2",
             AccelKind::Bvh4 => "bvh4",
+            AccelKind::Bvh8 => "bvh8",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
             AccelKind::KdTree => "kdtree",
@@ -118,6 +121,7 @@ impl AccelKind {
             AccelKind::BruteForce => Box::new(BruteForce::new(prims)),
             AccelKind::Bvh2 => Box::new(Bvh2::build(prims)),
             AccelKind::Bvh4 => Box::new(Bvh4::build(prims)),
+            AccelKind::Bvh8 => Box::new(Bvh8::build(prims)),
             AccelKind::Grid => Box::new(Grid::build(prims)),
             AccelKind::Octree => Box::new(Octree::build(prims)),
             AccelKind::KdTree => Box::new(KdTree::build(prims)),

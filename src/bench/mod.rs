@@ -233,7 +233,13 @@ impl TraceMode for Batched {
 }
 
 /// The modes `packet-render bench` knows, by name.
-pub const MODES: &[&str] = &["scalar-bvh2", "bvh4-single", "bvh4-packet"];
+pub const MODES: &[&str] = &[
+    "scalar-bvh2",
+    "bvh4-single",
+    "bvh4-packet",
+    "bvh8-single",
+    "bvh8-packet",
+];
 
 /// Builds a mode over `tris` (the mesh in file order).
 pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
@@ -250,6 +256,14 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
         "bvh4-packet" => Some(Box::new(Batched {
             name: "bvh4-packet",
             accel: AccelKind::Bvh4.build(tris),
+        })),
+        "bvh8-single" => Some(Box::new(SingleRay {
+            name: "bvh8-single",
+            accel: AccelKind::Bvh8.build(tris),
+        })),
+        "bvh8-packet" => Some(Box::new(Batched {
+            name: "bvh8-packet",
+            accel: AccelKind::Bvh8.build(tris),
         })),
         _ => None,
     }

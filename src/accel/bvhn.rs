@@ -1,11 +1,13 @@
-//! 4-wide BVH: the fast path.
+//! N-wide BVHs: the fast path. [`Bvh4`] (4-wide nodes, SSE-width slab tests) and
+//! [`Bvh8`] (8-wide nodes, AVX-width slab tests) share one implementation, generic over
+//! the node width.
 //!
-//! Built by collapsing the binned-SAH BVH2: each BVH4 node takes a BVH2 node's two
-//! children and repeatedly opens the child with the largest surface area until it has
-//! four (the greedy SAH-aware collapse of Wald et al. 2008, "Getting Rid of Packets").
-//! A node stores its children's bounds as lane arrays, so one 4-wide slab test covers
-//! all four children; leaves of a triangle mesh hold [`TriGroup4`]s, so one SIMD test
-//! covers four triangles. Other primitive kinds keep scalar leaves.
+//! Built by collapsing the binned-SAH BVH2: each node takes a BVH2 node's two children
+//! and repeatedly opens the child with the largest surface area until it has N (the
+//! greedy SAH-aware collapse of Wald et al. 2008, "Getting Rid of Packets"). A node
+//! stores its children's bounds as lane arrays, so one N-wide slab test covers all
+//! children; leaves of a triangle mesh hold [`TriGroup4`]s, so one SIMD test covers four
+//! triangles. Other primitive kinds keep scalar leaves.
 //!
 //! Three traversals: single ray (`closest_single`, `any_single`), and coherent packets
 //! of [`PACKET_WIDTH`] rays (`closest_batch`/`any_batch` through the [`Accel`] batch
@@ -19,26 +21,51 @@ use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::kernels::{
     PacketShear, RayLanes, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
 };
-use crate::simd::{F4, Lanes, PACKET_WIDTH, Packet};
+use crate::simd::{F4, F8, Lanes, PACKET_WIDTH, Packet};
 use glam::Vec3;
 use std::time::Instant;
 
-/// A BVH4 node: the four children's bounds as lane arrays and packed child references.
+/// A node of an N-wide BVH: the children's bounds as lane arrays and packed child
+/// references.
 ///
 /// `planes[0..3]` are `min_x, min_y, min_z` and `planes[3..6]` are `max_x, max_y, max_z`,
-/// each `[f32; 4]` with one lane per child, so the near plane of axis `a` for a ray with
+/// each `[f32; N]` with one lane per child, so the near plane of axis `a` for a ray with
 /// a negative direction component is `planes[a + 3]` and no per-ray shuffling is needed.
 /// Unused child slots have empty bounds (+inf..-inf), which no ray can enter.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub struct Bvh4Node {
-    pub planes: [[f32; 4]; 6],
+pub struct BvhNode<const N: usize> {
+    pub planes: [[f32; N]; 6],
     /// Child references: an interior node's index, or [`LEAF`] | count << 27 | first.
-    pub children: [u32; 4],
+    pub children: [u32; N],
 }
+
+/// A 4-wide node: two cache lines.
+pub type Bvh4Node = BvhNode<4>;
+/// An 8-wide node: 224 bytes of bounds and references, padded to four cache lines.
+pub type Bvh8Node = BvhNode<8>;
 
 const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
 const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 64);
+const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
+const _: () = assert!(std::mem::align_of::<Bvh8Node>() == 64);
+
+/// The node widths there are kernels for, and the lane type of their slab test.
+pub trait NodeWidth {
+    /// N lanes: one per child.
+    type L: Lanes;
+}
+
+/// Marker for node width `N`.
+pub struct Width<const N: usize>;
+
+impl NodeWidth for Width<4> {
+    type L = F4;
+}
+
+impl NodeWidth for Width<8> {
+    type L = F8;
+}
 
 /// Leaf flag of a child reference. A leaf's `first` (27 bits) indexes triangle groups
 /// (triangle meshes) or primitives (other kinds); `count` (4 bits) is how many.
@@ -60,22 +87,28 @@ fn leaf_range(r: u32) -> std::ops::Range<usize> {
     first..first + count
 }
 
-/// Traversal stack depth; the BVH2 depth bound (see `bvh2::STACK_SIZE`) bounds this too,
-/// since a BVH4 node pushes at most three entries per level it descends.
-const STACK: usize = 3 * super::bvh2::STACK_SIZE;
+/// Single-ray traversal stack capacity. A node pushes at most N - 1 entries per level it
+/// descends and the BVH2 depth bound (`bvh2::STACK_SIZE`) bounds the levels, so
+/// 7 x 128 entries cover an 8-wide tree of any shape (checked at build time).
+const SINGLE_STACK: usize = 7 * super::bvh2::STACK_SIZE + 1;
+
+/// Packet traversal stack capacity (an entry holds a lane vector of entry distances, so
+/// this is kept smaller). A tree whose worst path needs more (a path through more than
+/// 36 full 8-wide nodes) traces its packets ray by ray.
+const PACKET_STACK: usize = 256;
 
 /// A fixed-size traversal stack that is not zero-filled per ray (a 3 KB memset per ray
 /// cost 17 % of single-ray time). Entries below `len` are always initialised.
-struct Stack<T: Copy> {
-    items: [std::mem::MaybeUninit<T>; STACK],
+struct Stack<T: Copy, const CAP: usize> {
+    items: [std::mem::MaybeUninit<T>; CAP],
     len: usize,
 }
 
-impl<T: Copy> Stack<T> {
+impl<T: Copy, const CAP: usize> Stack<T, CAP> {
     #[inline(always)]
     fn new() -> Self {
         Stack {
-            items: [const { std::mem::MaybeUninit::uninit() }; STACK],
+            items: [const { std::mem::MaybeUninit::uninit() }; CAP],
             len: 0,
         }
     }
@@ -109,12 +142,21 @@ enum Leaves<P> {
     Scalar { prims: P, ids: Vec<u32> },
 }
 
-pub struct Bvh4<P: Primitives> {
-    pub nodes: Vec<Bvh4Node>,
+/// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]).
+pub struct Bvh<P: Primitives, const N: usize> {
+    pub nodes: Vec<BvhNode<N>>,
     leaves: Leaves<P>,
     root: u32,
     info: AccelInfo,
+    /// The most entries any traversal can have on its stack: the largest sum of
+    /// (children - 1) along a root-to-leaf path.
+    stack_need: usize,
 }
+
+/// The 4-wide BVH.
+pub type Bvh4<P> = Bvh<P, 4>;
+/// The 8-wide BVH.
+pub type Bvh8<P> = Bvh<P, 8>;
 
 /// Build parameters for 4-wide leaves. Triangle leaves are tested four at a time, so
 /// the SAH counts them in blocks of four (a leaf of 1-4 triangles costs one test): on
@@ -129,13 +171,16 @@ pub fn bvh4_build_options(simd_triangle_leaves: bool) -> Bvh2BuildOptions {
     }
 }
 
-impl<P: Primitives> Bvh4<P> {
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
     pub fn build(prims: P) -> Self {
         let start = Instant::now();
         let n = prims.count();
         let triangles = prims.as_triangles();
         let (tree, ids) = build_tree(&prims, bvh4_build_options(triangles.is_some()));
-        let mut c = Collapse {
+        let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
             nodes: Vec::with_capacity(n / 2 + 1),
@@ -159,48 +204,58 @@ impl<P: Primitives> Bvh4<P> {
             Leaves::Triangles(g) => g.len() * std::mem::size_of::<TriGroup4>(),
             Leaves::Scalar { prims, ids } => prims.memory_bytes() + ids.len() * 4,
         };
-        let mut bvh = Bvh4 {
+        let mut bvh = Bvh {
             nodes,
             leaves,
             root,
             info: AccelInfo::default(),
+            stack_need: 0,
         };
-        let (leaf_count, depth, sah) = bvh.shape(root_area);
+        let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
+        assert!(
+            stack_need < SINGLE_STACK,
+            "BVH{N} deeper than the BVH2 depth bound allows"
+        );
+        bvh.stack_need = stack_need;
         bvh.info = AccelInfo {
-            name: "bvh4",
+            name: if N == 4 { "bvh4" } else { "bvh8" },
             primitives: n,
             build_ms: start.elapsed().as_secs_f64() * 1e3,
             nodes: bvh.nodes.len(),
             leaves: leaf_count,
             max_depth: depth,
-            memory_bytes: bvh.nodes.len() * std::mem::size_of::<Bvh4Node>() + leaf_bytes,
+            memory_bytes: bvh.nodes.len() * std::mem::size_of::<BvhNode<N>>() + leaf_bytes,
             sah_cost: sah,
         };
         bvh
     }
 
     /// (leaf count, depth, SAH cost with one unit per node visit and per leaf group or
-    /// primitive, relative to the root's area).
-    fn shape(&self, root_area: f32) -> (usize, usize, f64) {
-        let (mut leaves, mut depth, mut cost) = (0, 0, 0.0);
+    /// primitive relative to the root's area, traversal stack need: the largest sum of
+    /// children - 1 along a root-to-leaf path).
+    fn shape(&self, root_area: f32) -> (usize, usize, f64, usize) {
+        let (mut leaves, mut depth, mut cost, mut need) = (0, 0, 0.0, 0);
         let inv = 1.0 / root_area.max(f32::MIN_POSITIVE) as f64;
-        let mut stack = vec![(self.root, 0usize, root_area)];
-        while let Some((r, d, area)) = stack.pop() {
+        let mut stack = vec![(self.root, 0usize, root_area, 0usize)];
+        while let Some((r, d, area, pending)) = stack.pop() {
             depth = depth.max(d);
+            need = need.max(pending);
             if is_leaf(r) {
                 leaves += usize::from(r != EMPTY_CHILD);
                 cost += area as f64 * inv * leaf_range(r).len() as f64;
             } else {
                 cost += area as f64 * inv;
                 let node = &self.nodes[r as usize];
+                let kids = node.children.iter().filter(|&&c| c != EMPTY_CHILD).count();
                 for (slot, &c) in node.children.iter().enumerate() {
                     if c != EMPTY_CHILD {
-                        stack.push((c, d + 1, node.child_bounds(slot).area()));
+                        let area = node.child_bounds(slot).area();
+                        stack.push((c, d + 1, area, pending + kids - 1));
                     }
                 }
             }
         }
-        (leaves, depth, cost)
+        (leaves, depth, cost, need)
     }
 
     /// Bytes per primitive of nodes and leaves.
@@ -209,16 +264,16 @@ impl<P: Primitives> Bvh4<P> {
     }
 }
 
-struct Collapse<'a> {
+struct Collapse<'a, const N: usize> {
     ids: &'a [u32],
     triangles: Option<&'a Triangles>,
-    nodes: Vec<Bvh4Node>,
+    nodes: Vec<BvhNode<N>>,
     groups: Vec<TriGroup4>,
 }
 
-impl Collapse<'_> {
-    /// The BVH4 reference for a build subtree: its two children, then the child with
-    /// the largest area opened until there are four.
+impl<const N: usize> Collapse<'_, N> {
+    /// The node reference for a build subtree: its two children, then the child with
+    /// the largest area opened until there are N.
     fn collapse(&mut self, node: &BuildNode) -> u32 {
         let BuildNode::Interior { children, .. } = node else {
             let BuildNode::Leaf { start, count, .. } = node else {
@@ -226,11 +281,12 @@ impl Collapse<'_> {
             };
             return self.leaf(*start, *count);
         };
-        // Up to four children in a fixed array (no allocation per node); opening a child
+        // Up to N children in a fixed array (no allocation per node); opening a child
         // moves the last one into its slot, then appends the grandchildren.
-        let mut kids: [&BuildNode; 4] = [&children[0], &children[1], &children[1], &children[1]];
+        let mut kids: [&BuildNode; N] = [&children[1]; N];
+        kids[0] = &children[0];
         let mut n = 2;
-        while n < 4 {
+        while n < N {
             let open = (0..n)
                 .filter(|&i| matches!(kids[i], BuildNode::Interior { .. }))
                 .max_by(|&a, &b| kids[a].area().total_cmp(&kids[b].area()));
@@ -245,16 +301,16 @@ impl Collapse<'_> {
         }
         let kids = &kids[..n];
         let index = self.nodes.len();
-        self.nodes.push(Bvh4Node {
+        self.nodes.push(BvhNode {
             planes: [
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
+                [f32::INFINITY; N],
+                [f32::INFINITY; N],
+                [f32::INFINITY; N],
+                [f32::NEG_INFINITY; N],
+                [f32::NEG_INFINITY; N],
+                [f32::NEG_INFINITY; N],
             ],
-            children: [EMPTY_CHILD; 4],
+            children: [EMPTY_CHILD; N],
         });
         for (slot, k) in kids.iter().enumerate() {
             let b = k.bounds();
@@ -295,20 +351,20 @@ impl Collapse<'_> {
     }
 }
 
-/// A ray prepared for 4-wide node tests: splatted origin and reciprocal direction, and
+/// A ray prepared for N-wide node tests: splatted origin and reciprocal direction, and
 /// the plane indices its direction signs select.
-struct NodeRay {
-    o: [F4; 3],
-    inv: [F4; 3],
+struct NodeRay<L: Lanes> {
+    o: [L; 3],
+    inv: [L; 3],
     /// `inv * (1 + 2 gamma(3))`: Ize's conservative far-plane scale folded into the
     /// reciprocal once per ray instead of once per node.
-    inv_far: [F4; 3],
+    inv_far: [L; 3],
     near: [usize; 3],
     far: [usize; 3],
-    tmin: F4,
+    tmin: L,
 }
 
-impl NodeRay {
+impl<L: Lanes> NodeRay<L> {
     #[inline(always)]
     fn new(q: &RayQuery) -> Self {
         let near = [0, 1, 2].map(|a| {
@@ -319,34 +375,26 @@ impl NodeRay {
             }
         });
         NodeRay {
-            o: [
-                F4::splat(q.origin.x),
-                F4::splat(q.origin.y),
-                F4::splat(q.origin.z),
-            ],
-            inv: [
-                F4::splat(q.inv_dir.x),
-                F4::splat(q.inv_dir.y),
-                F4::splat(q.inv_dir.z),
-            ],
-            inv_far: [0, 1, 2].map(|a| F4::splat(q.inv_dir[a] * ROBUST_FAR_SCALE)),
+            o: [0, 1, 2].map(|a| L::splat(q.origin[a])),
+            inv: [0, 1, 2].map(|a| L::splat(q.inv_dir[a])),
+            inv_far: [0, 1, 2].map(|a| L::splat(q.inv_dir[a] * ROBUST_FAR_SCALE)),
             near,
             far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
-            tmin: F4::splat(q.tmin),
+            tmin: L::splat(q.tmin),
         }
     }
 
-    /// Slab test against the four children: entry distances and the bits of the
+    /// Slab test against a node's children: entry distances and the bits of the
     /// children entered within `[tmin, tmax]`. The same arithmetic as `Aabb::intersect`.
     #[inline(always)]
-    fn test(&self, node: &Bvh4Node, tmax: f32) -> (F4, u32) {
+    fn test<const N: usize>(&self, node: &BvhNode<N>, tmax: f32) -> (L, u32) {
         let p = &node.planes;
-        let d = |plane: usize, a: usize| (F4::from_array(p[plane]) - self.o[a]) * self.inv[a];
-        let f = |plane: usize, a: usize| (F4::from_array(p[plane]) - self.o[a]) * self.inv_far[a];
+        let d = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv[a];
+        let f = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv_far[a];
         let enter =
             d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
         let exit = f(self.far[0], 0).minps(
-            f(self.far[1], 1).minps(f(self.far[2], 2).minps(F4::splat(tmax * ROBUST_FAR_SCALE))),
+            f(self.far[1], 1).minps(f(self.far[2], 2).minps(L::splat(tmax * ROBUST_FAR_SCALE))),
         );
         (enter, enter.le(exit).bitmask())
     }
@@ -354,12 +402,18 @@ impl NodeRay {
 
 /// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
 #[inline(always)]
-fn order_children(node: &Bvh4Node, enter: F4, mask: u32, stack: &mut Stack<(u32, f32)>) -> u32 {
+fn order_children<L: Lanes, const N: usize>(
+    node: &BvhNode<N>,
+    enter: L,
+    mask: u32,
+    stack: &mut Stack<(u32, f32), SINGLE_STACK>,
+) -> u32 {
     if mask & (mask - 1) == 0 {
         return node.children[mask.trailing_zeros() as usize];
     }
     let t = enter.to_array();
-    let mut hits = [(0u32, 0f32); 4];
+    let t = t.as_ref();
+    let mut hits = [(0u32, 0f32); N];
     let mut n = 0;
     let mut m = mask;
     while m != 0 {
@@ -380,11 +434,14 @@ fn order_children(node: &Bvh4Node, enter: F4, mask: u32, stack: &mut Stack<(u32,
     hits[n - 1].0
 }
 
-impl<P: Primitives> Bvh4<P> {
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
     /// Closest hit of one ray in the subtree `start`, with interval `(q.tmin, tmax)`.
     #[inline]
     fn closest_from(&self, q: &RayQuery, start: u32, mut tmax: f32) -> Option<Hit> {
-        let ray = NodeRay::new(q);
+        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
         let mut best = None;
         let mut stack = Stack::new();
         let mut cur = start;
@@ -415,8 +472,8 @@ impl<P: Primitives> Bvh4<P> {
     /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
     #[inline]
     fn any_from(&self, q: &RayQuery, start: u32) -> bool {
-        let ray = NodeRay::new(q);
-        let mut stack: Stack<u32> = Stack::new();
+        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+        let mut stack: Stack<u32, SINGLE_STACK> = Stack::new();
         let mut cur = start;
         loop {
             if !is_leaf(cur) {
@@ -523,14 +580,18 @@ struct PacketHits<L: Lanes> {
     hit: u32,
 }
 
-impl<P: Primitives> Bvh4<P> {
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
     /// Traces `rays` (exactly `L::WIDTH`) as packets: lanes are grouped by direction
     /// octant and dominant axis, each group traversed together; a packet whose rays fall
-    /// into more than two groups is incoherent and goes ray by ray instead.
+    /// into more than two groups is incoherent and goes ray by ray instead, as do all
+    /// packets of a tree too deep for the packet stack.
     fn packet_closest<L: Lanes>(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         let setup = PacketSetup::<L>::new(rays);
         out.fill(None);
-        if !setup.coherent() {
+        if !setup.coherent() || self.stack_need >= PACKET_STACK {
             for_each_bit(setup.valid, |i| out[i] = self.closest_single(&rays[i]));
             return;
         }
@@ -569,7 +630,7 @@ impl<P: Primitives> Bvh4<P> {
         };
         let mut tu = L::splat(0.0);
         let mut tv = L::splat(0.0);
-        let mut stack: Stack<(u32, L)> = Stack::new();
+        let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
         loop {
@@ -601,15 +662,15 @@ impl<P: Primitives> Bvh4<P> {
                 tmax = L::from_array(new_t);
             } else if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let mut enters = [L::splat(0.0); 4];
-                let mut order = [(0usize, 0f32); 4];
+                let mut enters = [L::splat(0.0); N];
+                let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
                 for (c, slot) in enters.iter_mut().enumerate() {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let (enter, bits) = p.child_test::<SHARED>(node, c, tcull);
+                    let (enter, bits) = p.child_test::<SHARED, N>(node, c, tcull);
                     if bits & active != 0 {
                         *slot = enter;
                         // insertion sort, far to near, by the representative lane's entry
@@ -712,7 +773,7 @@ impl<P: Primitives> Bvh4<P> {
     fn packet_any<L: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
         let setup = PacketSetup::<L>::new(rays);
         out.fill(false);
-        if !setup.coherent() {
+        if !setup.coherent() || self.stack_need >= PACKET_STACK {
             for_each_bit(setup.valid, |i| out[i] = self.any_single(&rays[i]));
             return;
         }
@@ -736,7 +797,7 @@ impl<P: Primitives> Bvh4<P> {
         mask: u32,
     ) -> u32 {
         let mut occluded = 0u32;
-        let mut stack: Stack<(u32, L)> = Stack::new();
+        let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
         let tcull = p.tmax * L::splat(ROBUST_FAR_SCALE);
@@ -756,11 +817,11 @@ impl<P: Primitives> Bvh4<P> {
             } else if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
                 let mut first = None;
-                for c in 0..4 {
+                for c in 0..N {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let (enter, bits) = p.child_test::<SHARED>(node, c, tcull);
+                    let (enter, bits) = p.child_test::<SHARED, N>(node, c, tcull);
                     if bits & active != 0 {
                         match first {
                             None => first = Some((node.children[c], enter)),
@@ -829,7 +890,12 @@ impl<L: Lanes> PacketRays<L> {
     /// Slab test of child `c` for every lane: entry distances and hit bits. `tcull` is
     /// the closest hit so far, already scaled by `ROBUST_FAR_SCALE`.
     #[inline(always)]
-    fn child_test<const SHARED: bool>(&self, node: &Bvh4Node, c: usize, tcull: L) -> (L, u32) {
+    fn child_test<const SHARED: bool, const N: usize>(
+        &self,
+        node: &BvhNode<N>,
+        c: usize,
+        tcull: L,
+    ) -> (L, u32) {
         let p = &node.planes;
         let o = &self.shear.shared_origin;
         // With a shared origin, `plane - o` is one scalar per plane, broadcast: the same
@@ -1023,7 +1089,10 @@ impl<L: Lanes> PacketSetup<L> {
     }
 }
 
-impl<P: Primitives> Accel for Bvh4<P> {
+impl<P: Primitives, const N: usize> Accel for Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
         self.closest_single(ray)
     }
@@ -1050,12 +1119,78 @@ impl<P: Primitives> Accel for Bvh4<P> {
     }
 }
 
-impl Bvh4Node {
+impl<const N: usize> BvhNode<N> {
     /// Bounds of child slot `c`.
     pub fn child_bounds(&self, c: usize) -> Aabb {
         Aabb::new(
             Vec3::new(self.planes[0][c], self.planes[1][c], self.planes[2][c]),
             Vec3::new(self.planes[3][c], self.planes[4][c], self.planes[5][c]),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn soup() -> Triangles {
+        let mut corners = Vec::new();
+        let mut s = 7u32;
+        let mut r = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s as f32 / u32::MAX as f32
+        };
+        for _ in 0..3000 {
+            let c = Vec3::new(r(), r(), r()) * 10.0;
+            corners.push([
+                c,
+                c + Vec3::new(r(), r(), 0.1),
+                c + Vec3::new(0.2, r(), r()),
+            ]);
+        }
+        Triangles::from_corners(&corners)
+    }
+
+    /// A tree too deep for the packet stack traces its packets ray by ray, with the same
+    /// answers as the packet kernels.
+    #[test]
+    fn packets_of_a_tree_too_deep_for_the_packet_stack_go_ray_by_ray() {
+        let mut bvh = Bvh8::build(soup());
+        assert!(bvh.stack_need > 0 && bvh.stack_need < PACKET_STACK);
+        let rays: Vec<Ray> = (0..512)
+            .map(|i| {
+                let a = i as f32 * 0.37;
+                Ray::new(
+                    Vec3::new(5.0, 5.0, -20.0),
+                    Vec3::new(a.cos() * 0.2, a.sin() * 0.2, 1.0),
+                )
+            })
+            .collect();
+        let mut packet = vec![None; rays.len()];
+        let mut packet_occ = vec![false; rays.len()];
+        bvh.closest_hit_batch(&rays, &mut packet);
+        bvh.any_hit_batch(&rays, &mut packet_occ);
+        assert!(packet.iter().filter(|h| h.is_some()).count() > 50);
+        bvh.stack_need = PACKET_STACK;
+        let mut deep = vec![None; rays.len()];
+        let mut deep_occ = vec![false; rays.len()];
+        bvh.closest_hit_batch(&rays, &mut deep);
+        bvh.any_hit_batch(&rays, &mut deep_occ);
+        assert_eq!(packet, deep);
+        assert_eq!(packet_occ, deep_occ);
+    }
+
+    /// The stack need is the largest sum of (children - 1) along a path, and within the
+    /// single-ray capacity.
+    #[test]
+    fn stack_need_bounds_the_pending_entries() {
+        let b4 = Bvh4::build(soup());
+        let b8 = Bvh8::build(soup());
+        assert!(b4.stack_need <= 3 * b4.info.max_depth);
+        assert!(b8.stack_need <= 7 * b8.info.max_depth);
+        assert!(b8.info.max_depth < b4.info.max_depth);
+        assert!(b8.stack_need < SINGLE_STACK);
     }
 }
