@@ -130,6 +130,28 @@ impl<T: Copy, const CAP: usize> Stack<T, CAP> {
     }
 }
 
+impl<const CAP: usize> Stack<(u32, f32), CAP> {
+    /// Insertion-sorts the entries from `base` up by decreasing distance, so the nearest
+    /// is popped first. Equal distances keep their push order.
+    #[inline(always)]
+    fn sort_top_far_to_near(&mut self, base: usize) {
+        // SAFETY: every slot below `len` was written by `push`.
+        let items = unsafe {
+            std::slice::from_raw_parts_mut(self.items.as_mut_ptr().cast::<(u32, f32)>(), self.len)
+        };
+        let run = &mut items[base..];
+        for i in 1..run.len() {
+            let x = run[i];
+            let mut j = i;
+            while j > 0 && run[j - 1].1 < x.1 {
+                run[j] = run[j - 1];
+                j -= 1;
+            }
+            run[j] = x;
+        }
+    }
+}
+
 /// Rays a packet part keeps traversing together; with fewer active rays it finishes the
 /// subtree ray by ray (measured: see README, "Packet threshold").
 pub const PACKET_MIN_ACTIVE: u32 = 3;
@@ -161,11 +183,13 @@ pub type Bvh8<P> = Bvh<P, 8>;
 /// Build parameters for 4-wide leaves. Triangle leaves are tested four at a time, so
 /// the SAH counts them in blocks of four (a leaf of 1-4 triangles costs one test): on
 /// the bunny this packs leaves (37k half-empty groups before) and builds 41 -> 30 ms,
-/// with 4-7 % faster traversal. Up to two groups per leaf. Scalar leaves (spheres)
-/// keep per-primitive costs.
-pub fn bvh4_build_options(simd_triangle_leaves: bool) -> Bvh2BuildOptions {
+/// with 4-7 % faster traversal. One group per leaf: on the bunny, leaves of up to two
+/// groups were 3 % slower for single rays through the BVH8 (4.14 vs 4.28 Mrays/s
+/// diffuse) and 7 % for its packets, and no faster for the BVH4. Scalar leaves
+/// (spheres) keep per-primitive costs.
+pub fn wide_build_options(simd_triangle_leaves: bool) -> Bvh2BuildOptions {
     Bvh2BuildOptions {
-        max_leaf: if simd_triangle_leaves { 8 } else { 4 },
+        max_leaf: 4,
         block_size: if simd_triangle_leaves { 4 } else { 1 },
         ..Bvh2BuildOptions::default()
     }
@@ -179,7 +203,7 @@ where
         let start = Instant::now();
         let n = prims.count();
         let triangles = prims.as_triangles();
-        let (tree, ids) = build_tree(&prims, bvh4_build_options(triangles.is_some()));
+        let (tree, ids) = build_tree(&prims, wide_build_options(triangles.is_some()));
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
@@ -401,6 +425,8 @@ impl<L: Lanes> NodeRay<L> {
 }
 
 /// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
+/// One child: no stack traffic; two: one comparison; more: all are pushed and the
+/// pushed run is insertion-sorted in place, far to near, so no scratch array is filled.
 #[inline(always)]
 fn order_children<L: Lanes, const N: usize>(
     node: &BvhNode<N>,
@@ -408,30 +434,31 @@ fn order_children<L: Lanes, const N: usize>(
     mask: u32,
     stack: &mut Stack<(u32, f32), SINGLE_STACK>,
 ) -> u32 {
-    if mask & (mask - 1) == 0 {
-        return node.children[mask.trailing_zeros() as usize];
+    let i0 = mask.trailing_zeros() as usize;
+    let rest = mask & (mask - 1);
+    if rest == 0 {
+        return node.children[i0];
     }
     let t = enter.to_array();
     let t = t.as_ref();
-    let mut hits = [(0u32, 0f32); N];
-    let mut n = 0;
-    let mut m = mask;
-    while m != 0 {
-        let i = m.trailing_zeros() as usize;
-        // insertion sort, far to near
-        let mut j = n;
-        while j > 0 && hits[j - 1].1 < t[i] {
-            hits[j] = hits[j - 1];
-            j -= 1;
-        }
-        hits[j] = (node.children[i], t[i]);
-        n += 1;
-        m &= m - 1;
+    let i1 = rest.trailing_zeros() as usize;
+    let (a, b) = ((node.children[i0], t[i0]), (node.children[i1], t[i1]));
+    let mut rest = rest & (rest - 1);
+    if rest == 0 {
+        let (near, far) = if b.1 < a.1 { (b, a) } else { (a, b) };
+        stack.push(far);
+        return near.0;
     }
-    for h in &hits[..n - 1] {
-        stack.push(*h);
+    let base = stack.len;
+    stack.push(a);
+    stack.push(b);
+    while rest != 0 {
+        let i = rest.trailing_zeros() as usize;
+        stack.push((node.children[i], t[i]));
+        rest &= rest - 1;
     }
-    hits[n - 1].0
+    stack.sort_top_far_to_near(base);
+    stack.pop().expect("three or more entries were pushed").0
 }
 
 impl<P: Primitives, const N: usize> Bvh<P, N>

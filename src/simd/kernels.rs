@@ -52,7 +52,7 @@ impl TriGroup4 {
 
 /// One ray against the four triangles of a group: the lane of the closest hit in
 /// `(q.tmin, tmax)` and the hit. Ties go to the lowest lane, as in a sequential loop.
-#[inline]
+#[inline(always)]
 pub fn triangle4_closest(q: &RayQuery, g: &TriGroup4, tmax: f32) -> Option<(usize, PrimHit)> {
     let (t, u, v, bits) = triangle4(q, g, tmax);
     if bits == 0 {
@@ -78,7 +78,7 @@ pub fn triangle4_closest(q: &RayQuery, g: &TriGroup4, tmax: f32) -> Option<(usiz
 }
 
 /// One ray against a group: does any triangle lie in `(q.tmin, tmax)`?
-#[inline]
+#[inline(always)]
 pub fn triangle4_any(q: &RayQuery, g: &TriGroup4, tmax: f32) -> bool {
     triangle4(q, g, tmax).3 != 0
 }
@@ -135,20 +135,38 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
 
     // An edge function exactly zero: the scalar test redoes it in f64 (Woop et al. §4).
     if edge != 0 {
-        for i in 0..4 {
-            if edge >> i & 1 == 1 {
-                let [p0, p1, p2] = g.corners(i);
-                match intersect_triangle(q, p0, p1, p2, tmax) {
-                    Some(h) => {
-                        bits |= 1 << i;
-                        (t[i], bu[i], bv[i]) = (h.t, h.u, h.v);
-                    }
-                    None => bits &= !(1 << i),
+        edge_lanes(q, g, tmax, edge, &mut bits, &mut t, &mut bu, &mut bv);
+    }
+    (t, bu, bv, bits)
+}
+
+/// The scalar test for the lanes of `edge` (rare: kept out of line so the common path
+/// stays small).
+#[cold]
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn edge_lanes(
+    q: &RayQuery,
+    g: &TriGroup4,
+    tmax: f32,
+    edge: u32,
+    bits: &mut u32,
+    t: &mut [f32; 4],
+    bu: &mut [f32; 4],
+    bv: &mut [f32; 4],
+) {
+    for i in 0..4 {
+        if edge >> i & 1 == 1 {
+            let [p0, p1, p2] = g.corners(i);
+            match intersect_triangle(q, p0, p1, p2, tmax) {
+                Some(h) => {
+                    *bits |= 1 << i;
+                    (t[i], bu[i], bv[i]) = (h.t, h.u, h.v);
                 }
+                None => *bits &= !(1 << i),
             }
         }
     }
-    (t, bu, bv, bits)
 }
 
 /// The rays of a packet prepared for triangle tests that share one axis permutation
