@@ -288,3 +288,53 @@ where
         "the rays must actually hit spheres ({hits})"
     );
 }
+
+/// The SoA packet entry points give the single-ray answers, for full and partial
+/// packets; lanes past `len` hold rays that would hit and are ignored.
+#[test]
+fn soa_packets_match_single_rays_and_ignore_lanes_past_len() {
+    soa_packets::<4>();
+    soa_packets::<8>();
+}
+
+fn soa_packets<const N: usize>()
+where
+    Width<N>: NodeWidth,
+{
+    use packet_render::geometry::RayPacket;
+    let tris = mesh();
+    let rays = camera_rays(&bounds_of(&tris), 32, 32);
+    let bvh = Bvh::<_, N>::build(tris.clone());
+    let mut checked = 0;
+    for (k, chunk) in rays.chunks(16).enumerate() {
+        let len = 16 - k % 5; // full packets and partial ones
+        let mut packet = RayPacket::from_rays(chunk);
+        packet.len = len;
+        let mut hits = [Some(Hit {
+            t: -1.0,
+            prim: 7,
+            u: 0.0,
+            v: 0.0,
+        }); 16];
+        let mut occ = [true; 16];
+        bvh.closest_hit_packet(&packet, &mut hits);
+        bvh.any_hit_packet(&packet, &mut occ);
+        for i in 0..16 {
+            if i < len {
+                let want = bvh.closest_single(&chunk[i]);
+                assert_eq!(hits[i], want, "bvh{N} packet {k} lane {i}");
+                assert_eq!(
+                    occ[i],
+                    bvh.any_single(&chunk[i]),
+                    "bvh{N} packet {k} lane {i}"
+                );
+                checked += usize::from(want.is_some());
+            } else {
+                // untouched past len
+                assert_eq!(hits[i].map(|h| h.t), Some(-1.0), "bvh{N} lane {i} past len");
+                assert!(occ[i]);
+            }
+        }
+    }
+    assert!(checked > 100, "too few hits to compare: {checked}");
+}

@@ -17,7 +17,7 @@
 
 use super::bvh2::{BuildNode, build_tree};
 use super::{Accel, AccelInfo, Bvh2BuildOptions, Primitives, Triangles};
-use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
+use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::{
     PacketShear, RayLanes, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
 };
@@ -615,11 +615,11 @@ where
     /// octant and dominant axis, each group traversed together; a packet whose rays fall
     /// into more than two groups is incoherent and goes ray by ray instead, as do all
     /// packets of a tree too deep for the packet stack.
-    fn packet_closest<L: Lanes>(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    fn packet_closest<L: Lanes>(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
         let setup = PacketSetup::<L>::new(rays);
-        out.fill(None);
+        out[..rays.len].fill(None);
         if !setup.coherent() || self.stack_need >= PACKET_STACK {
-            for_each_bit(setup.valid, |i| out[i] = self.closest_single(&rays[i]));
+            for_each_bit(setup.valid, |i| out[i] = self.closest_single(&rays.ray(i)));
             return;
         }
         for g in 0..setup.groups {
@@ -644,7 +644,7 @@ where
     fn packet_closest_group<L: Lanes, const SHARED: bool>(
         &self,
         p: &PacketRays<L>,
-        rays: &[Ray],
+        rays: &RayPacket,
         mask: u32,
     ) -> PacketHits<L> {
         let mut tmax = p.tmax;
@@ -673,7 +673,7 @@ where
                 let mut new_t = tmax.to_array();
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
-                    let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                    let q = &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
                     if let Some(h) = self.closest_from(q, cur, tm.as_ref()[i]) {
                         new_t.as_mut()[i] = h.t;
                         res.prim[i] = h.prim;
@@ -751,7 +751,8 @@ where
                             let mut m = edge;
                             while m != 0 {
                                 let i = m.trailing_zeros() as usize;
-                                let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                                let q =
+                                    &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
                                 if let Some(h) = crate::geometry::intersect_triangle(
                                     q,
                                     corners[0],
@@ -797,11 +798,11 @@ where
         res
     }
 
-    fn packet_any<L: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
+    fn packet_any<L: Lanes>(&self, rays: &RayPacket, out: &mut [bool]) {
         let setup = PacketSetup::<L>::new(rays);
-        out.fill(false);
+        out[..rays.len].fill(false);
         if !setup.coherent() || self.stack_need >= PACKET_STACK {
-            for_each_bit(setup.valid, |i| out[i] = self.any_single(&rays[i]));
+            for_each_bit(setup.valid, |i| out[i] = self.any_single(&rays.ray(i)));
             return;
         }
         for g in 0..setup.groups {
@@ -820,7 +821,7 @@ where
     fn packet_any_group<L: Lanes, const SHARED: bool>(
         &self,
         p: &PacketRays<L>,
-        rays: &[Ray],
+        rays: &RayPacket,
         mask: u32,
     ) -> u32 {
         let mut occluded = 0u32;
@@ -835,7 +836,7 @@ where
                 let mut m = active;
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
-                    let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                    let q = &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
                     if self.any_from(q, cur) {
                         occluded |= 1 << i;
                     }
@@ -883,7 +884,7 @@ where
                         let mut m = edge;
                         while m != 0 {
                             let i = m.trailing_zeros() as usize;
-                            let q = &RayQuery::new(&rays[i]).expect("active lanes are valid");
+                            let q = &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
                             if crate::geometry::intersect_triangle(
                                 q, corners[0], corners[1], corners[2], q.tmax,
                             )
@@ -974,19 +975,11 @@ struct PacketSetup<L: Lanes> {
 
 impl<L: Lanes> PacketSetup<L> {
     #[inline(always)]
-    fn new(rays: &[Ray]) -> Self {
-        let mut a = [L::splat(0.0).to_array(); 8];
-        for (i, r) in rays.iter().enumerate().take(L::WIDTH) {
-            let vals = [
-                r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax,
-            ];
-            for (k, v) in vals.into_iter().enumerate() {
-                a[k].as_mut()[i] = v;
-            }
-        }
-        let l = |k: usize| L::from_array(a[k]);
-        let (o, d) = ([l(0), l(1), l(2)], [l(3), l(4), l(5)]);
-        let (tmin, tmax) = (l(6), l(7));
+    fn new(rays: &RayPacket) -> Self {
+        // Lanes `len..` may hold anything: they are masked off from `valid` below.
+        let o = [0, 1, 2].map(|a| L::load(&rays.origin[a]));
+        let d = [0, 1, 2].map(|a| L::load(&rays.dir[a]));
+        let (tmin, tmax) = (L::load(&rays.tmin), L::load(&rays.tmax));
         let zero = L::splat(0.0);
         let finite = o[0].is_finite()
             & o[1].is_finite()
@@ -1005,7 +998,7 @@ impl<L: Lanes> PacketSetup<L> {
             & nonzero
             & tmin.le(tmax).bitmask()
             & lanes
-            & ((1u64 << rays.len()) - 1) as u32;
+            & ((1u64 << rays.len.min(L::WIDTH)) - 1) as u32;
         let inv = [
             L::splat(1.0) / d[0],
             L::splat(1.0) / d[1],
@@ -1022,10 +1015,11 @@ impl<L: Lanes> PacketSetup<L> {
         let (shared_origin, origin0) = match valid {
             0 => (false, [0.0; 3]),
             v => {
-                let r0 = &rays[v.trailing_zeros() as usize];
-                let same = |k: usize, x: f32| o[k].eq(L::splat(x)).bitmask();
-                let same_bits = same(0, r0.origin.x) & same(1, r0.origin.y) & same(2, r0.origin.z);
-                (valid & !same_bits == 0, r0.origin.to_array())
+                let i0 = v.trailing_zeros() as usize;
+                let r0 = [0, 1, 2].map(|a| rays.origin[a][i0]);
+                let same = |k: usize| o[k].eq(L::splat(r0[k])).bitmask();
+                let same_bits = same(0) & same(1) & same(2);
+                (valid & !same_bits == 0, r0)
             }
         };
         let mut s = PacketSetup {
@@ -1131,14 +1125,22 @@ where
     fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         // A partial last packet leaves its missing lanes invalid.
         for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
-            self.packet_closest::<Packet>(r, o);
+            self.packet_closest::<Packet>(&RayPacket::from_rays(r), o);
         }
     }
 
     fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool]) {
         for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
-            self.packet_any::<Packet>(r, o);
+            self.packet_any::<Packet>(&RayPacket::from_rays(r), o);
         }
+    }
+
+    fn closest_hit_packet(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
+        self.packet_closest::<Packet>(packet, out);
+    }
+
+    fn any_hit_packet(&self, packet: &RayPacket, out: &mut [bool]) {
+        self.packet_any::<Packet>(packet, out);
     }
 
     fn info(&self) -> AccelInfo {

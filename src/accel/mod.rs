@@ -26,7 +26,7 @@ pub use primitives::{Primitives, Spheres, Triangles};
 pub use spatial::TraversalCounts;
 
 use crate::error::{Error, Result};
-use crate::geometry::{Hit, Ray};
+use crate::geometry::{Hit, Ray, RayPacket};
 use crate::scene::Scene;
 use std::str::FromStr;
 
@@ -51,6 +51,22 @@ pub trait Accel: Send + Sync {
     fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool]) {
         for (r, o) in rays.iter().zip(out.iter_mut()) {
             *o = self.any_hit(r);
+        }
+    }
+
+    /// Closest hits for one packet of rays in structure-of-arrays form (lanes
+    /// `0..packet.len` into `out[..packet.len]`). Structures with packet kernels
+    /// override this; the batch entry points of those go through it.
+    fn closest_hit_packet(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
+        for (i, o) in out[..packet.len].iter_mut().enumerate() {
+            *o = self.closest_hit(&packet.ray(i));
+        }
+    }
+
+    /// Occlusion for one packet of rays in structure-of-arrays form.
+    fn any_hit_packet(&self, packet: &RayPacket, out: &mut [bool]) {
+        for (i, o) in out[..packet.len].iter_mut().enumerate() {
+            *o = self.any_hit(&packet.ray(i));
         }
     }
 

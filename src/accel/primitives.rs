@@ -1,4 +1,4 @@
-use crate::geometry::{Aabb, PrimHit, Ray, RayQuery, intersect_sphere, intersect_triangle};
+use crate::geometry::{Aabb, PrimHit, RayPacket, RayQuery, intersect_sphere, intersect_triangle};
 use crate::scene::{SphereSet, TriangleMesh};
 use crate::simd::Lanes;
 use crate::simd::kernels::{RayLanes, sphere_lanes};
@@ -36,15 +36,15 @@ pub trait Primitives: Send + Sync + Sized {
         lanes: &RayLanes<L>,
         tmax: L,
         active: u32,
-        rays: &[Ray],
+        rays: &RayPacket,
     ) -> (L, L, L, u32) {
         let _ = lanes;
         let tm = tmax.to_array();
         let (mut t, mut u, mut v) = (tm, L::splat(0.0).to_array(), L::splat(0.0).to_array());
         let mut bits = 0;
         for lane in (0..L::WIDTH).filter(|l| active >> l & 1 == 1) {
-            let hit =
-                RayQuery::new(&rays[lane]).and_then(|q| self.intersect(i, &q, tm.as_ref()[lane]));
+            let hit = RayQuery::new(&rays.ray(lane))
+                .and_then(|q| self.intersect(i, &q, tm.as_ref()[lane]));
             if let Some(h) = hit {
                 (t.as_mut()[lane], u.as_mut()[lane], v.as_mut()[lane]) = (h.t, h.u, h.v);
                 bits |= 1 << lane;
@@ -173,7 +173,7 @@ impl Primitives for Spheres {
         lanes: &RayLanes<L>,
         tmax: L,
         active: u32,
-        _rays: &[Ray],
+        _rays: &RayPacket,
     ) -> (L, L, L, u32) {
         let (t, bits) = sphere_lanes(lanes, self.center[i], self.radius[i], tmax, active);
         let zero = L::splat(0.0);

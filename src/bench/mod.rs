@@ -15,7 +15,7 @@ pub mod lecture;
 pub mod precision;
 
 use crate::accel::{Accel, AccelKind, Triangles};
-use crate::geometry::{Hit, Ray, orthonormal_basis};
+use crate::geometry::{Hit, Ray, RayPacket, orthonormal_basis};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -105,31 +105,44 @@ impl BenchCamera {
         }
     }
 
-    /// Camera rays of `pixels` appended to `out`, sixteen at a time: the arithmetic of
-    /// [`dir`](Self::dir) lane by lane (IEEE division and square root round the same in
-    /// SIMD lanes), so the rays are bit-identical to the scalar ones.
-    pub fn rays_into(&self, pixels: &[(u32, u32)], out: &mut Vec<Ray>) {
+    /// Camera rays of up to sixteen `pixels` written into `packet` (lanes
+    /// `0..pixels.len()`, which becomes its `len`): the arithmetic of [`dir`](Self::dir)
+    /// lane by lane (IEEE division and square root round the same in SIMD lanes), so
+    /// the rays are bit-identical to the scalar ones.
+    pub fn packet_into(&self, pixels: &[(u32, u32)], packet: &mut RayPacket) {
         use crate::simd::{F16, Lanes};
+        assert!(pixels.len() <= 16, "a packet holds sixteen rays");
+        let mut xs = [0.0f32; 16];
+        let mut ys = [0.0f32; 16];
+        for (k, &(x, y)) in pixels.iter().enumerate() {
+            xs[k] = x as f32;
+            ys[k] = y as f32;
+        }
+        let s = F16::splat;
+        let (x, y) = (F16::from_array(xs), F16::from_array(ys));
+        let sx = (s(2.0) * (x + s(0.5)) / s(self.width as f32) - s(1.0))
+            * s(self.tan_half)
+            * s(self.aspect);
+        let sy = (s(1.0) - s(2.0) * (y + s(0.5)) / s(self.height as f32)) * s(self.tan_half);
+        let v = [0, 1, 2].map(|a| s(self.f[a]) + s(self.r[a]) * sx + s(self.u[a]) * sy);
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let inv = s(1.0) / len;
+        for (a, &va) in v.iter().enumerate() {
+            packet.dir[a] = (va * inv).to_array();
+            packet.origin[a] = [self.eye[a]; 16];
+        }
+        packet.tmin = [0.0; 16];
+        packet.tmax = [f32::INFINITY; 16];
+        packet.time = [0.0; 16];
+        packet.len = pixels.len();
+    }
+
+    /// Camera rays of `pixels` appended to `out` (see [`packet_into`](Self::packet_into)).
+    pub fn rays_into(&self, pixels: &[(u32, u32)], out: &mut Vec<Ray>) {
+        let mut p = RayPacket::default();
         for chunk in pixels.chunks(16) {
-            let mut xs = [0.0f32; 16];
-            let mut ys = [0.0f32; 16];
-            for (k, &(x, y)) in chunk.iter().enumerate() {
-                xs[k] = x as f32;
-                ys[k] = y as f32;
-            }
-            let s = F16::splat;
-            let (x, y) = (F16::from_array(xs), F16::from_array(ys));
-            let sx = (s(2.0) * (x + s(0.5)) / s(self.width as f32) - s(1.0))
-                * s(self.tan_half)
-                * s(self.aspect);
-            let sy = (s(1.0) - s(2.0) * (y + s(0.5)) / s(self.height as f32)) * s(self.tan_half);
-            let v = [0, 1, 2].map(|a| s(self.f[a]) + s(self.r[a]) * sx + s(self.u[a]) * sy);
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            let inv = s(1.0) / len;
-            let d = v.map(|c| (c * inv).to_array());
-            out.extend(
-                (0..chunk.len()).map(|k| Ray::new(self.eye, Vec3::new(d[0][k], d[1][k], d[2][k]))),
-            );
+            self.packet_into(chunk, &mut p);
+            out.extend((0..p.len).map(|k| p.ray(k)));
         }
     }
 
@@ -183,6 +196,21 @@ pub trait TraceMode: Send + Sync {
     fn name(&self) -> &'static str;
     fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]);
     fn occluded(&self, rays: &[Ray], out: &mut [bool]);
+    /// Whether the mode traces SoA packets ([`closest_packet`](Self::closest_packet)),
+    /// so the harness generates rays straight into lanes, as Embree's does for
+    /// `rtcIntersect16`; otherwise it generates a slice of rays.
+    fn takes_packets(&self) -> bool {
+        false
+    }
+    /// One packet of rays in SoA form.
+    fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+        let aos: [Ray; 16] = std::array::from_fn(|k| rays.ray(k));
+        self.closest(&aos[..rays.len], out);
+    }
+    fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
+        let aos: [Ray; 16] = std::array::from_fn(|k| rays.ray(k));
+        self.occluded(&aos[..rays.len], out);
+    }
     fn build_ms(&self) -> f64;
 }
 
@@ -206,6 +234,7 @@ impl TraceMode for SingleRay {
             *o = self.accel.any_hit(r);
         }
     }
+
     fn build_ms(&self) -> f64 {
         self.accel.info().build_ms
     }
@@ -226,6 +255,15 @@ impl TraceMode for Batched {
     }
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
         self.accel.any_hit_batch(rays, out);
+    }
+    fn takes_packets(&self) -> bool {
+        true
+    }
+    fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+        self.accel.closest_hit_packet(rays, out);
+    }
+    fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
+        self.accel.any_hit_packet(rays, out);
     }
     fn build_ms(&self) -> f64 {
         self.accel.info().build_ms
@@ -385,66 +423,89 @@ impl Protocol {
             .map(|(band, (t_band, prim_band))| {
                 let y0 = band as u32 * BAND;
                 let mut pixels = Vec::with_capacity(64);
+                // A tile's valid rays in order, as four SoA packets of sixteen for packet
+                // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
+                let soa = mode.takes_packets();
+                let mut packets = [RayPacket::default(); 4];
                 let mut rays = Vec::with_capacity(64);
-                let mut camera = Vec::with_capacity(64);
-                let mut slots = Vec::with_capacity(64);
-                let mut hits = [None; 64];
-                let mut occ = [false; 64];
+                let mut camera = RayPacket::default();
+                let mut slots = [0usize; 64];
+                let mut hits = [None; 16];
+                let mut occ = [false; 16];
                 let mut count = 0u64;
                 for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
                     for tx in (0..w).step_by(TILE as usize) {
                         tile_pixels(tx, ty, w, h, &mut pixels);
                         rays.clear();
-                        slots.clear();
-                        // Camera rays of the whole tile: the primary workload traces them,
-                        // the secondary ones start from their hits.
-                        camera.clear();
-                        self.camera.rays_into(&pixels, &mut camera);
-                        if workload == Workload::Primary {
-                            rays.extend_from_slice(&camera);
-                        }
-                        for (k, &(x, y)) in pixels.iter().enumerate() {
-                            let local = ((y - y0) * w + x) as usize;
-                            match (workload, primary) {
-                                (Workload::Primary, _) => slots.push(local),
-                                (_, Some(p)) => {
-                                    let i = (y * w + x) as usize;
-                                    if p.prim[i] != u32::MAX {
-                                        let dir = camera[k].dir;
-                                        rays.push(
-                                            self.secondary_ray(
-                                                workload, x, y, dir, p.t[i], p.prim[i],
-                                            ),
-                                        );
-                                        slots.push(local);
-                                    } else {
-                                        t_band[local] = f32::NAN;
-                                        prim_band[local] = u32::MAX;
-                                    }
+                        let mut n = 0;
+                        for (b, block) in pixels.chunks(16).enumerate() {
+                            let local = |(x, y): (u32, u32)| ((y - y0) * w + x) as usize;
+                            if workload == Workload::Primary {
+                                self.camera.packet_into(block, &mut packets[b]);
+                                if !soa {
+                                    rays.extend((0..block.len()).map(|k| packets[b].ray(k)));
                                 }
-                                (_, None) => unreachable!("secondary workloads need primary hits"),
+                                for &px in block {
+                                    slots[n] = local(px);
+                                    n += 1;
+                                }
+                                continue;
+                            }
+                            let Some(p) = primary else {
+                                unreachable!("secondary workloads need primary hits")
+                            };
+                            // Secondary rays start from the camera rays' hits.
+                            self.camera.packet_into(block, &mut camera);
+                            for (k, &(x, y)) in block.iter().enumerate() {
+                                let i = (y * w + x) as usize;
+                                if p.prim[i] == u32::MAX {
+                                    t_band[local((x, y))] = f32::NAN;
+                                    prim_band[local((x, y))] = u32::MAX;
+                                    continue;
+                                }
+                                let dir =
+                                    Vec3::new(camera.dir[0][k], camera.dir[1][k], camera.dir[2][k]);
+                                let r = self.secondary_ray(workload, x, y, dir, p.t[i], p.prim[i]);
+                                if soa {
+                                    packets[n / 16].set(n % 16, &r);
+                                } else {
+                                    rays.push(r);
+                                }
+                                slots[n] = local((x, y));
+                                n += 1;
                             }
                         }
-                        let n = rays.len();
                         count += n as u64;
-                        if workload == Workload::Shadow {
-                            mode.occluded(&rays, &mut occ[..n]);
-                            for (k, &s) in slots.iter().enumerate() {
-                                t_band[s] = if occ[k] { 1.0 } else { 0.0 };
-                                prim_band[s] = 0;
-                            }
-                        } else {
-                            mode.closest(&rays, &mut hits[..n]);
-                            for (k, &s) in slots.iter().enumerate() {
-                                match hits[k] {
-                                    Some(hh) => {
-                                        t_band[s] = hh.t;
-                                        prim_band[s] = hh.prim;
-                                    }
-                                    None => {
-                                        t_band[s] = f32::NAN;
-                                        prim_band[s] = u32::MAX;
-                                    }
+                        for b in 0..n.div_ceil(16) {
+                            let len = (n - 16 * b).min(16);
+                            packets[b].len = len;
+                            let slots = &slots[16 * b..16 * b + len];
+                            let rays = if soa {
+                                &[][..]
+                            } else {
+                                &rays[16 * b..16 * b + len]
+                            };
+                            if workload == Workload::Shadow {
+                                if soa {
+                                    mode.occluded_packet(&packets[b], &mut occ);
+                                } else {
+                                    mode.occluded(rays, &mut occ[..len]);
+                                }
+                                for (k, &s) in slots.iter().enumerate() {
+                                    t_band[s] = if occ[k] { 1.0 } else { 0.0 };
+                                    prim_band[s] = 0;
+                                }
+                            } else {
+                                if soa {
+                                    mode.closest_packet(&packets[b], &mut hits);
+                                } else {
+                                    mode.closest(rays, &mut hits[..len]);
+                                }
+                                for (k, &s) in slots.iter().enumerate() {
+                                    (t_band[s], prim_band[s]) = match hits[k] {
+                                        Some(hh) => (hh.t, hh.prim),
+                                        None => (f32::NAN, u32::MAX),
+                                    };
                                 }
                             }
                         }

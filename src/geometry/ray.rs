@@ -1,3 +1,4 @@
+use crate::simd::PACKET_WIDTH;
 use glam::Vec3;
 
 /// A ray with its parametric interval `[tmin, tmax]` and a time in the shutter interval
@@ -45,6 +46,80 @@ impl Ray {
             && !self.tmin.is_nan()
             && !self.tmax.is_nan()
             && self.tmin <= self.tmax
+    }
+}
+
+/// Up to [`PACKET_WIDTH`] rays as structure of arrays (the layout of Embree's
+/// `RTCRay16`): the packet kernels load each field as one lane vector, so a caller that
+/// generates rays lane-parallel (camera rays) can hand them over without a transpose.
+/// Lanes `len..` are unused and ignored.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct RayPacket {
+    pub origin: [[f32; PACKET_WIDTH]; 3],
+    pub dir: [[f32; PACKET_WIDTH]; 3],
+    pub tmin: [f32; PACKET_WIDTH],
+    pub tmax: [f32; PACKET_WIDTH],
+    pub time: [f32; PACKET_WIDTH],
+    pub len: usize,
+}
+
+impl Default for RayPacket {
+    fn default() -> Self {
+        RayPacket {
+            origin: [[0.0; PACKET_WIDTH]; 3],
+            dir: [[0.0; PACKET_WIDTH]; 3],
+            tmin: [0.0; PACKET_WIDTH],
+            tmax: [0.0; PACKET_WIDTH],
+            time: [0.0; PACKET_WIDTH],
+            len: 0,
+        }
+    }
+}
+
+impl RayPacket {
+    /// A packet of `rays` (at most [`PACKET_WIDTH`]).
+    pub fn from_rays(rays: &[Ray]) -> Self {
+        assert!(rays.len() <= PACKET_WIDTH, "more rays than packet lanes");
+        let mut p = RayPacket::default();
+        for (i, r) in rays.iter().enumerate() {
+            p.set(i, r);
+        }
+        p.len = rays.len();
+        p
+    }
+
+    /// Writes `r` into lane `i` (which must be below [`PACKET_WIDTH`]; `len` is not
+    /// changed).
+    #[inline]
+    pub fn set(&mut self, i: usize, r: &Ray) {
+        for a in 0..3 {
+            self.origin[a][i] = r.origin[a];
+            self.dir[a][i] = r.dir[a];
+        }
+        self.tmin[i] = r.tmin;
+        self.tmax[i] = r.tmax;
+        self.time[i] = r.time;
+    }
+
+    /// Appends `r`; the packet must not be full.
+    #[inline]
+    pub fn push(&mut self, r: &Ray) {
+        self.set(self.len, r);
+        self.len += 1;
+    }
+
+    /// The ray of lane `i`.
+    #[inline]
+    pub fn ray(&self, i: usize) -> Ray {
+        let v = |a: &[[f32; PACKET_WIDTH]; 3]| Vec3::new(a[0][i], a[1][i], a[2][i]);
+        Ray {
+            origin: v(&self.origin),
+            dir: v(&self.dir),
+            tmin: self.tmin[i],
+            tmax: self.tmax[i],
+            time: self.time[i],
+        }
     }
 }
 
