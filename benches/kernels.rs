@@ -5,7 +5,7 @@
 //! `cargo bench --bench kernels` (add `-- build` or `-- trace` to pick a group).
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use packet_render::accel::{Bvh2, Bvh4, Primitives};
+use packet_render::accel::{Bvh2, Bvh4, Bvh8, Primitives};
 use packet_render::bench::{BenchMesh, MODES, Protocol, Workload, build_mode};
 use std::hint::black_box;
 
@@ -21,6 +21,7 @@ fn builds(c: &mut Criterion) {
     g.throughput(Throughput::Elements(tris.count() as u64));
     g.bench_function("bvh2", |b| b.iter(|| black_box(Bvh2::build(tris.clone()))));
     g.bench_function("bvh4", |b| b.iter(|| black_box(Bvh4::build(tris.clone()))));
+    g.bench_function("bvh8", |b| b.iter(|| black_box(Bvh8::build(tris.clone()))));
     g.finish();
 }
 
