@@ -39,6 +39,7 @@ impl Ray {
 
     /// A ray that can hit anything: finite origin and direction, a non-zero direction
     /// and a non-empty interval. Invalid rays (NaN, inf, zero direction) miss everything.
+    #[inline]
     pub fn is_valid(&self) -> bool {
         self.origin.is_finite()
             && self.dir.is_finite()
@@ -149,6 +150,7 @@ pub struct RayQuery {
 
 impl RayQuery {
     /// Prepares a ray; `None` for an invalid ray (it can hit nothing).
+    #[inline]
     pub fn new(ray: &Ray) -> Option<Self> {
         if !ray.is_valid() {
             return None;
