@@ -17,7 +17,7 @@
 
 use super::bvh2::{BuildNode, build_tree};
 use super::{Accel, AccelInfo, Bvh2BuildOptions, Primitives, Triangles};
-use crate::geometry::{Aabb, Hit, ROBUST_FAR_SCALE, Ray, RayPacket, RayQuery};
+use crate::geometry::{Aabb, Hit, LaneRays, ROBUST_FAR_SCALE, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::{
     PacketShear, RayLanes, TriGroup4, triangle_packet, triangle4_any, triangle4_closest,
 };
@@ -672,20 +672,23 @@ where
     /// octant and dominant axis, each group traversed together; a packet whose rays fall
     /// into more than two groups is incoherent and goes ray by ray instead, as do all
     /// packets of a tree too deep for the packet stack.
-    fn packet_closest<L: Lanes>(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+    fn packet_closest<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R, out: &mut [Option<Hit>]) {
         let setup = PacketSetup::<L>::new(rays);
-        out[..rays.len].fill(None);
+        out[..rays.lane_count()].fill(None);
         if !setup.coherent() || self.stack_need >= PACKET_STACK {
-            for_each_bit(setup.valid, |i| out[i] = self.closest_single(&rays.ray(i)));
+            for_each_bit(setup.valid, |i| {
+                let q = lane_query(rays, i);
+                out[i] = self.closest_from(&q, self.root, q.tmax);
+            });
             return;
         }
         for g in 0..setup.groups {
             let p = setup.group(g);
             let mask = setup.group_mask[g];
             let hits = if setup.shared_origin {
-                self.packet_closest_group::<L, true>(&p, rays, mask)
+                self.packet_closest_group::<L, R, true>(&p, rays, mask)
             } else {
-                self.packet_closest_group::<L, false>(&p, rays, mask)
+                self.packet_closest_group::<L, R, false>(&p, rays, mask)
             };
             for_each_bit(hits.hit, |i| {
                 out[i] = Some(Hit {
@@ -698,10 +701,10 @@ where
         }
     }
 
-    fn packet_closest_group<L: Lanes, const SHARED: bool>(
+    fn packet_closest_group<L: Lanes, R: LaneRays + ?Sized, const SHARED: bool>(
         &self,
         p: &PacketRays<L>,
-        rays: &RayPacket,
+        rays: &R,
         mask: u32,
     ) -> PacketHits<L> {
         let mut tmax = p.tmax;
@@ -731,7 +734,7 @@ where
                 let mut new_t = tmax.to_array();
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
-                    let q = &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
+                    let q = &lane_query(rays, i);
                     if let Some(h) = self.closest_from(q, cur, tm.as_ref()[i]) {
                         new_t.as_mut()[i] = h.t;
                         res.prim[i] = h.prim;
@@ -809,8 +812,7 @@ where
                             let mut m = edge;
                             while m != 0 {
                                 let i = m.trailing_zeros() as usize;
-                                let q =
-                                    &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
+                                let q = &lane_query(rays, i);
                                 if let Some(h) = crate::geometry::intersect_triangle(
                                     q,
                                     corners[0],
@@ -856,30 +858,32 @@ where
         res
     }
 
-    fn packet_any<L: Lanes>(&self, rays: &RayPacket, out: &mut [bool]) {
+    fn packet_any<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R, out: &mut [bool]) {
         let setup = PacketSetup::<L>::new(rays);
-        out[..rays.len].fill(false);
+        out[..rays.lane_count()].fill(false);
         if !setup.coherent() || self.stack_need >= PACKET_STACK {
-            for_each_bit(setup.valid, |i| out[i] = self.any_single(&rays.ray(i)));
+            for_each_bit(setup.valid, |i| {
+                out[i] = self.any_from(&lane_query(rays, i), self.root)
+            });
             return;
         }
         for g in 0..setup.groups {
             let p = setup.group(g);
             let mask = setup.group_mask[g];
             let occluded = if setup.shared_origin {
-                self.packet_any_group::<L, true>(&p, rays, mask)
+                self.packet_any_group::<L, R, true>(&p, rays, mask)
             } else {
-                self.packet_any_group::<L, false>(&p, rays, mask)
+                self.packet_any_group::<L, R, false>(&p, rays, mask)
             };
             for_each_bit(occluded, |i| out[i] = true);
         }
     }
 
     /// Bits of the lanes in `mask` that hit something within their interval.
-    fn packet_any_group<L: Lanes, const SHARED: bool>(
+    fn packet_any_group<L: Lanes, R: LaneRays + ?Sized, const SHARED: bool>(
         &self,
         p: &PacketRays<L>,
-        rays: &RayPacket,
+        rays: &R,
         mask: u32,
     ) -> u32 {
         let mut occluded = 0u32;
@@ -895,7 +899,7 @@ where
                 let mut m = active;
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
-                    let q = &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
+                    let q = &lane_query(rays, i);
                     if self.any_from(q, cur) {
                         occluded |= 1 << i;
                     }
@@ -943,7 +947,7 @@ where
                         let mut m = edge;
                         while m != 0 {
                             let i = m.trailing_zeros() as usize;
-                            let q = &RayQuery::new(&rays.ray(i)).expect("active lanes are valid");
+                            let q = &lane_query(rays, i);
                             if crate::geometry::intersect_triangle(
                                 q, corners[0], corners[1], corners[2], q.tmax,
                             )
@@ -1116,6 +1120,15 @@ fn lane_range<L: Lanes>(v: L, mask: u32) -> (f32, f32) {
     (lo[0], hi[0])
 }
 
+/// The query of valid lane `i` of a packet (built in registers for a `RayPacket`: a
+/// `Ray` written to memory field by field and read back with vector loads right away
+/// stalls on store forwarding).
+#[inline(always)]
+fn lane_query<R: LaneRays + ?Sized>(rays: &R, i: usize) -> RayQuery {
+    rays.lane_query(i)
+        .expect("packet setup passes valid lanes only")
+}
+
 /// Calls `f` with the index of every set bit.
 #[inline(always)]
 fn for_each_bit(mut bits: u32, mut f: impl FnMut(usize)) {
@@ -1147,11 +1160,10 @@ struct PacketSetup<L: Lanes> {
 
 impl<L: Lanes> PacketSetup<L> {
     #[inline(always)]
-    fn new(rays: &RayPacket) -> Self {
-        // Lanes `len..` may hold anything: they are masked off from `valid` below.
-        let o = [0, 1, 2].map(|a| L::load(&rays.origin[a]));
-        let d = [0, 1, 2].map(|a| L::load(&rays.dir[a]));
-        let (tmin, tmax) = (L::load(&rays.tmin), L::load(&rays.tmax));
+    fn new<R: LaneRays + ?Sized>(rays: &R) -> Self {
+        // Lanes past the count may hold anything: they are masked off from `valid` below.
+        let [ox, oy, oz, dx, dy, dz, tmin, tmax] = rays.load_lanes::<L>();
+        let (o, d) = ([ox, oy, oz], [dx, dy, dz]);
         let zero = L::splat(0.0);
         let finite = o[0].is_finite()
             & o[1].is_finite()
@@ -1170,7 +1182,7 @@ impl<L: Lanes> PacketSetup<L> {
             & nonzero
             & tmin.le(tmax).bitmask()
             & lanes
-            & ((1u64 << rays.len.min(L::WIDTH)) - 1) as u32;
+            & ((1u64 << rays.lane_count().min(L::WIDTH)) - 1) as u32;
         let inv = [
             L::splat(1.0) / d[0],
             L::splat(1.0) / d[1],
@@ -1188,7 +1200,7 @@ impl<L: Lanes> PacketSetup<L> {
             0 => (false, [0.0; 3]),
             v => {
                 let i0 = v.trailing_zeros() as usize;
-                let r0 = [0, 1, 2].map(|a| rays.origin[a][i0]);
+                let r0 = rays.lane_origin(i0);
                 let same = |k: usize| o[k].eq(L::splat(r0[k])).bitmask();
                 let same_bits = same(0) & same(1) & same(2);
                 (valid & !same_bits == 0, r0)
@@ -1297,22 +1309,22 @@ where
     fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         // A partial last packet leaves its missing lanes invalid.
         for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
-            self.packet_closest::<Packet>(&RayPacket::from_rays(r), o);
+            self.packet_closest::<Packet, _>(r, o);
         }
     }
 
     fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool]) {
         for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
-            self.packet_any::<Packet>(&RayPacket::from_rays(r), o);
+            self.packet_any::<Packet, _>(r, o);
         }
     }
 
     fn closest_hit_packet(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
-        self.packet_closest::<Packet>(packet, out);
+        self.packet_closest::<Packet, _>(packet, out);
     }
 
     fn any_hit_packet(&self, packet: &RayPacket, out: &mut [bool]) {
-        self.packet_any::<Packet>(packet, out);
+        self.packet_any::<Packet, _>(packet, out);
     }
 
     fn info(&self) -> AccelInfo {

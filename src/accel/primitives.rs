@@ -1,4 +1,4 @@
-use crate::geometry::{Aabb, PrimHit, RayPacket, RayQuery, intersect_sphere, intersect_triangle};
+use crate::geometry::{Aabb, LaneRays, PrimHit, RayQuery, intersect_sphere, intersect_triangle};
 use crate::scene::{SphereSet, TriangleMesh};
 use crate::simd::Lanes;
 use crate::simd::kernels::{RayLanes, sphere_lanes};
@@ -30,20 +30,21 @@ pub trait Primitives: Send + Sync + Sized {
     /// Primitive `i` against the lanes of a packet (`active` lanes only): the closest
     /// hit per lane in `(tmin, tmax)` as `(t, u, v, hit bits)`. The default runs the
     /// scalar test lane by lane; sets with a SIMD twin override it.
-    fn intersect_lanes<L: Lanes>(
+    fn intersect_lanes<L: Lanes, R: LaneRays + ?Sized>(
         &self,
         i: usize,
         lanes: &RayLanes<L>,
         tmax: L,
         active: u32,
-        rays: &RayPacket,
+        rays: &R,
     ) -> (L, L, L, u32) {
         let _ = lanes;
         let tm = tmax.to_array();
         let (mut t, mut u, mut v) = (tm, L::splat(0.0).to_array(), L::splat(0.0).to_array());
         let mut bits = 0;
         for lane in (0..L::WIDTH).filter(|l| active >> l & 1 == 1) {
-            let hit = RayQuery::new(&rays.ray(lane))
+            let hit = rays
+                .lane_query(lane)
                 .and_then(|q| self.intersect(i, &q, tm.as_ref()[lane]));
             if let Some(h) = hit {
                 (t.as_mut()[lane], u.as_mut()[lane], v.as_mut()[lane]) = (h.t, h.u, h.v);
@@ -167,13 +168,13 @@ impl Primitives for Spheres {
     }
 
     #[inline]
-    fn intersect_lanes<L: Lanes>(
+    fn intersect_lanes<L: Lanes, R: LaneRays + ?Sized>(
         &self,
         i: usize,
         lanes: &RayLanes<L>,
         tmax: L,
         active: u32,
-        _rays: &RayPacket,
+        _rays: &R,
     ) -> (L, L, L, u32) {
         let (t, bits) = sphere_lanes(lanes, self.center[i], self.radius[i], tmax, active);
         let zero = L::splat(0.0);

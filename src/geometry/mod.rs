@@ -9,7 +9,7 @@ mod triangle;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
 pub use offset::{offset_ray_origin, offset_ray_origin_scaled, orthonormal_basis};
-pub use ray::{Ray, RayPacket, RayQuery};
+pub use ray::{LaneRays, Ray, RayPacket, RayQuery};
 pub use sphere::intersect_sphere;
 pub use triangle::{PrimHit, intersect_triangle, intersect_triangle_f64};
 

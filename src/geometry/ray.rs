@@ -1,4 +1,4 @@
-use crate::simd::PACKET_WIDTH;
+use crate::simd::{Lanes, PACKET_WIDTH};
 use glam::Vec3;
 
 /// A ray with its parametric interval `[tmin, tmax]` and a time in the shutter interval
@@ -121,6 +121,78 @@ impl RayPacket {
             tmax: self.tmax[i],
             time: self.time[i],
         }
+    }
+}
+
+/// The rays of one packet as the packet kernels read them: either a slice of rays (the
+/// batch entry points) or a [`RayPacket`]. The kernels are generic over it, so neither
+/// form is converted into the other: a slice is gathered into lanes once, a packet is
+/// loaded as it is, and a lane that falls back to the scalar path reads its ray from
+/// where it already lies.
+pub trait LaneRays {
+    /// Rays present (at most [`PACKET_WIDTH`]); lanes past it are ignored.
+    fn lane_count(&self) -> usize;
+    /// Origin x/y/z, direction x/y/z, tmin, tmax as lanes (unused lanes: anything).
+    fn load_lanes<L: Lanes>(&self) -> [L; 8];
+    /// The origin of lane `i`.
+    fn lane_origin(&self, i: usize) -> [f32; 3];
+    /// The query of lane `i`; `None` for an invalid ray.
+    fn lane_query(&self, i: usize) -> Option<RayQuery>;
+}
+
+impl LaneRays for [Ray] {
+    #[inline(always)]
+    fn lane_count(&self) -> usize {
+        self.len()
+    }
+    #[inline(always)]
+    fn load_lanes<L: Lanes>(&self) -> [L; 8] {
+        let mut a = [L::splat(0.0).to_array(); 8];
+        for (i, r) in self.iter().enumerate().take(L::WIDTH) {
+            let vals = [
+                r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax,
+            ];
+            for (k, v) in vals.into_iter().enumerate() {
+                a[k].as_mut()[i] = v;
+            }
+        }
+        a.map(L::from_array)
+    }
+    #[inline(always)]
+    fn lane_origin(&self, i: usize) -> [f32; 3] {
+        self[i].origin.to_array()
+    }
+    #[inline(always)]
+    fn lane_query(&self, i: usize) -> Option<RayQuery> {
+        RayQuery::new(&self[i])
+    }
+}
+
+impl LaneRays for RayPacket {
+    #[inline(always)]
+    fn lane_count(&self) -> usize {
+        self.len
+    }
+    #[inline(always)]
+    fn load_lanes<L: Lanes>(&self) -> [L; 8] {
+        [
+            L::load(&self.origin[0]),
+            L::load(&self.origin[1]),
+            L::load(&self.origin[2]),
+            L::load(&self.dir[0]),
+            L::load(&self.dir[1]),
+            L::load(&self.dir[2]),
+            L::load(&self.tmin),
+            L::load(&self.tmax),
+        ]
+    }
+    #[inline(always)]
+    fn lane_origin(&self, i: usize) -> [f32; 3] {
+        [self.origin[0][i], self.origin[1][i], self.origin[2][i]]
+    }
+    #[inline(always)]
+    fn lane_query(&self, i: usize) -> Option<RayQuery> {
+        RayQuery::new(&self.ray(i))
     }
 }
 
