@@ -165,6 +165,12 @@ enum Leaves<P> {
     Scalar { prims: P, ids: Vec<u32> },
 }
 
+/// Trees with fewer nodes skip the whole-packet bounds: computing them costs about as
+/// much as a few child tests, which a packet crossing a handful of nodes never wins
+/// back (the 2-sphere, 2-triangle Whitted room traced its shadow queue 10 % slower
+/// with them; the bunny's BVH4 has 8.9k nodes).
+const PACKET_BOUNDS_MIN_NODES: usize = 32;
+
 /// Levels of the collapse that hand their children's subtrees to separate threads (at
 /// most N^2 tasks): the collapse was 13 % of a serial build (4 of 30 ms on the bunny).
 const PARALLEL_COLLAPSE_LEVELS: usize = 2;
@@ -178,6 +184,9 @@ pub struct Bvh<P: Primitives, const N: usize> {
     /// The most entries any traversal can have on its stack: the largest sum of
     /// (children - 1) along a root-to-leaf path.
     stack_need: usize,
+    /// Whether packets test nodes against their interval bounds first (trees of at
+    /// least [`PACKET_BOUNDS_MIN_NODES`] nodes; see [`PacketBounds`]).
+    packet_bounds: bool,
 }
 
 /// The 4-wide BVH.
@@ -239,6 +248,7 @@ where
             root,
             info: AccelInfo::default(),
             stack_need: 0,
+            packet_bounds: false,
         };
         let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
         assert!(
@@ -246,6 +256,7 @@ where
             "BVH{N} deeper than the BVH2 depth bound allows"
         );
         bvh.stack_need = stack_need;
+        bvh.packet_bounds = bvh.nodes.len() >= PACKET_BOUNDS_MIN_NODES;
         bvh.info = AccelInfo {
             name: if N == 4 { "bvh4" } else { "bvh8" },
             primitives: n,
@@ -720,7 +731,13 @@ where
         let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
-        let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(p, mask, tmax, SHARED);
+        let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
+            p,
+            mask,
+            tmax,
+            SHARED,
+            self.packet_bounds,
+        );
         loop {
             // Scaled once per step: entries are compared with it (see `Aabb::intersect`).
             let tcull = tmax * L::splat(ROBUST_FAR_SCALE);
@@ -891,7 +908,13 @@ where
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
         let tcull = p.tmax * L::splat(ROBUST_FAR_SCALE);
-        let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(p, mask, p.tmax, SHARED);
+        let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
+            p,
+            mask,
+            p.tmax,
+            SHARED,
+            self.packet_bounds,
+        );
         loop {
             let active = mask & !occluded & cur_enter.le(tcull).bitmask();
             if active == 0 {
@@ -1038,7 +1061,20 @@ struct PacketBounds<NL: Lanes> {
 impl<NL: Lanes> PacketBounds<NL> {
     /// Bounds over the lanes of `mask`, whose intervals end at most at `tmax`.
     #[inline(always)]
-    fn new<L: Lanes>(p: &PacketRays<L>, mask: u32, tmax: L, shared: bool) -> Self {
+    fn new<L: Lanes>(p: &PacketRays<L>, mask: u32, tmax: L, shared: bool, wanted: bool) -> Self {
+        if !wanted {
+            return PacketBounds {
+                o_near: [NL::splat(0.0); 3],
+                o_far: [NL::splat(0.0); 3],
+                inv: [[NL::splat(0.0); 2]; 3],
+                inv_far: [[NL::splat(0.0); 2]; 3],
+                tmin: NL::splat(0.0),
+                tcull: NL::splat(0.0),
+                near: p.near,
+                far: p.far,
+                enabled: false,
+            };
+        }
         let range = |v: L| lane_range(v, mask);
         let mut enabled = mask != 0;
         let (tmax_hi, tmin_lo) = (range(tmax).1, range(p.tmin).0);
@@ -1450,7 +1486,7 @@ mod tests {
                 let mask = setup.group_mask[g];
                 let shared = setup.shared_origin;
                 let bounds =
-                    PacketBounds::<<Width<N> as NodeWidth>::L>::new(&p, mask, p.tmax, shared);
+                    PacketBounds::<<Width<N> as NodeWidth>::L>::new(&p, mask, p.tmax, shared, true);
                 let tcull = p.tmax * Packet::splat(ROBUST_FAR_SCALE);
                 for node in &bvh.nodes {
                     let cand = bounds.candidates(node);
