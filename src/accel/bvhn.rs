@@ -9,11 +9,15 @@
 //! children; leaves of a triangle mesh hold [`TriGroup4`]s, so one SIMD test covers four
 //! triangles. Other primitive kinds keep scalar leaves.
 //!
-//! Three traversals: single ray (`closest_single`, `any_single`), and coherent packets
-//! of [`PACKET_WIDTH`] rays (`closest_batch`/`any_batch` through the [`Accel`] batch
-//! entry points). A packet is split by direction octant and dominant axis so that each
-//! part shares its slab planes and its watertight shear; a part with few active rays
-//! left finishes a subtree ray by ray, as Embree's hybrid traversal does.
+//! Traversals: single ray (`closest_single`, `any_single`), and coherent packets of
+//! [`PACKET_WIDTH`] rays, given as a slice (the [`Accel`] batch entry points) or as a SoA
+//! [`RayPacket`] (`closest_hit_packet`/`any_hit_packet`), both through the same kernels
+//! (generic over [`LaneRays`]). A packet is split by direction octant and dominant axis
+//! so that each part shares its slab planes and its watertight shear; each part first
+//! tests a node's children against the interval bounds of all its rays
+//! ([`PacketBounds`]), then runs the per-lane slab test only for children some lane may
+//! enter; a part with few active rays left finishes a subtree ray by ray, as Embree's
+//! hybrid traversal does.
 
 use super::bvh2::{BuildNode, build_tree};
 use super::{Accel, AccelInfo, Bvh2BuildOptions, Primitives, Triangles};
