@@ -1,6 +1,6 @@
 use super::{Accel, AccelInfo, Primitives, TraversalCounts};
 use crate::geometry::{Aabb, Hit, Ray, RayQuery};
-use glam::{Vec3, Vec3A};
+use glam::{BVec3A, Vec3, Vec3A};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -208,6 +208,8 @@ thread_local! {
     /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
     /// than building 3.5 KB of bins per node, most of which are tiny.
     static SCRATCH_BINS: std::cell::RefCell<Bins> = std::cell::RefCell::new(Bins::new());
+    /// Per-thread scratch ids for the partition.
+    static SCRATCH_IDS: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Where to split a node: axis, first bin of the right side, bin count, SAH cost.
@@ -526,6 +528,12 @@ impl Builder<'_> {
 
     /// Moves primitives whose centroid bin is below the split bin to the front, and
     /// gathers both sides' bounds on the way. Returns the count moved and the bounds.
+    ///
+    /// Branch-free (which side a primitive goes to is a coin flip to the branch
+    /// predictor): each id is written to both the next left and the next right slot of a
+    /// scratch array and only one cursor advances, and each side's boxes grow by a
+    /// box that is empty for the other side's primitives. Left keeps the input order,
+    /// right reverses it.
     fn partition(&self, ids: &mut [u32], cb: &BBox, s: Split) -> (usize, NodeBounds, NodeBounds) {
         let scale = Self::scale(cb, s.bins);
         let mut left = NodeBounds {
@@ -533,22 +541,35 @@ impl Builder<'_> {
             centroids: BBox::EMPTY,
         };
         let mut right = left;
-        let (mut i, mut j) = (0, ids.len());
-        while i < j {
-            let id = ids[i] as usize;
-            let c = self.centroids[id];
-            if Self::bins_of(c, cb.min, scale, s.bins)[s.axis] < s.bin {
-                left.bounds.grow(&self.bounds[id]);
-                left.centroids.grow_point(c);
-                i += 1;
-            } else {
-                right.bounds.grow(&self.bounds[id]);
-                right.centroids.grow_point(c);
-                j -= 1;
-                ids.swap(i, j);
+        let n = ids.len();
+        let moved = SCRATCH_IDS.with_borrow_mut(|tmp| {
+            tmp.clear();
+            tmp.resize(n, 0);
+            let (mut lo, mut hi) = (0usize, n);
+            for &id in ids.iter() {
+                let c = self.centroids[id as usize];
+                let b = &self.bounds[id as usize];
+                let goes_left = Self::bins_of(c, cb.min, scale, s.bins)[s.axis] < s.bin;
+                // lo < hi here: fewer than n ids are placed
+                tmp[lo] = id;
+                tmp[hi - 1] = id;
+                lo += usize::from(goes_left);
+                hi -= usize::from(!goes_left);
+                let (l, r) = (BVec3A::splat(goes_left), BVec3A::splat(!goes_left));
+                let inf = Vec3A::splat(f32::INFINITY);
+                left.bounds.min = left.bounds.min.min(Vec3A::select(l, b.min, inf));
+                left.bounds.max = left.bounds.max.max(Vec3A::select(l, b.max, -inf));
+                left.centroids.min = left.centroids.min.min(Vec3A::select(l, c, inf));
+                left.centroids.max = left.centroids.max.max(Vec3A::select(l, c, -inf));
+                right.bounds.min = right.bounds.min.min(Vec3A::select(r, b.min, inf));
+                right.bounds.max = right.bounds.max.max(Vec3A::select(r, b.max, -inf));
+                right.centroids.min = right.centroids.min.min(Vec3A::select(r, c, inf));
+                right.centroids.max = right.centroids.max.max(Vec3A::select(r, c, -inf));
             }
-        }
-        (i, left, right)
+            ids.copy_from_slice(tmp);
+            lo
+        });
+        (moved, left, right)
     }
 }
 
