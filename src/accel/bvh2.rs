@@ -543,8 +543,12 @@ impl Builder<'_> {
         let mut right = left;
         let n = ids.len();
         let moved = SCRATCH_IDS.with_borrow_mut(|tmp| {
-            tmp.clear();
-            tmp.resize(n, 0);
+            // Every slot is written before the copy back (left from the front, right from
+            // the back, meeting where the last id lands), so it only has to be long enough.
+            if tmp.len() < n {
+                tmp.resize(n, 0);
+            }
+            let tmp = &mut tmp[..n];
             let (mut lo, mut hi) = (0usize, n);
             for &id in ids.iter() {
                 let c = self.centroids[id as usize];

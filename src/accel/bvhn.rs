@@ -188,9 +188,6 @@ pub struct Bvh<P: Primitives, const N: usize> {
     /// The most entries any traversal can have on its stack: the largest sum of
     /// (children - 1) along a root-to-leaf path.
     stack_need: usize,
-    /// Whether packets test nodes against their interval bounds first (trees of at
-    /// least [`PACKET_BOUNDS_MIN_NODES`] nodes; see [`PacketBounds`]).
-    packet_bounds: bool,
 }
 
 /// The 4-wide BVH.
@@ -252,7 +249,6 @@ where
             root,
             info: AccelInfo::default(),
             stack_need: 0,
-            packet_bounds: false,
         };
         let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
         assert!(
@@ -260,7 +256,6 @@ where
             "BVH{N} deeper than the BVH2 depth bound allows"
         );
         bvh.stack_need = stack_need;
-        bvh.packet_bounds = bvh.nodes.len() >= PACKET_BOUNDS_MIN_NODES;
         bvh.info = AccelInfo {
             name: if N == 4 { "bvh4" } else { "bvh8" },
             primitives: n,
@@ -740,7 +735,7 @@ where
             mask,
             tmax,
             SHARED,
-            self.packet_bounds,
+            self.nodes.len() >= PACKET_BOUNDS_MIN_NODES,
         );
         loop {
             // Scaled once per step: entries are compared with it (see `Aabb::intersect`).
@@ -917,7 +912,7 @@ where
             mask,
             p.tmax,
             SHARED,
-            self.packet_bounds,
+            self.nodes.len() >= PACKET_BOUNDS_MIN_NODES,
         );
         loop {
             let active = mask & !occluded & cur_enter.le(tcull).bitmask();
@@ -1066,35 +1061,27 @@ impl<NL: Lanes> PacketBounds<NL> {
     /// Bounds over the lanes of `mask`, whose intervals end at most at `tmax`.
     #[inline(always)]
     fn new<L: Lanes>(p: &PacketRays<L>, mask: u32, tmax: L, shared: bool, wanted: bool) -> Self {
-        if !wanted {
-            return PacketBounds {
-                o_near: [NL::splat(0.0); 3],
-                o_far: [NL::splat(0.0); 3],
-                inv: [[NL::splat(0.0); 2]; 3],
-                inv_far: [[NL::splat(0.0); 2]; 3],
-                tmin: NL::splat(0.0),
-                tcull: NL::splat(0.0),
-                near: p.near,
-                far: p.far,
-                enabled: false,
-            };
-        }
-        let range = |v: L| lane_range(v, mask);
-        let mut enabled = mask != 0;
-        let (tmax_hi, tmin_lo) = (range(tmax).1, range(p.tmin).0);
+        let zero = NL::splat(0.0);
         let mut b = PacketBounds {
-            o_near: [NL::splat(0.0); 3],
-            o_far: [NL::splat(0.0); 3],
-            inv: [[NL::splat(0.0); 2]; 3],
-            inv_far: [[NL::splat(0.0); 2]; 3],
-            tmin: NL::splat(tmin_lo),
-            // `round(x * scale)` is monotone in x, so the bound of the lanes' products is
-            // the product of the bound (here and for the far reciprocals below).
-            tcull: NL::splat(tmax_hi * ROBUST_FAR_SCALE),
+            o_near: [zero; 3],
+            o_far: [zero; 3],
+            inv: [[zero; 2]; 3],
+            inv_far: [[zero; 2]; 3],
+            tmin: zero,
+            tcull: zero,
             near: p.near,
             far: p.far,
             enabled: false,
         };
+        if !wanted {
+            return b;
+        }
+        let range = |v: L| lane_range(v, mask);
+        let mut enabled = mask != 0;
+        b.tmin = NL::splat(range(p.tmin).0);
+        // `round(x * scale)` is monotone in x, so the bound of the lanes' products is the
+        // product of the bound (here and for the far reciprocals below).
+        b.tcull = NL::splat(range(tmax).1 * ROBUST_FAR_SCALE);
         for a in 0..3 {
             let (o_lo, o_hi) = if shared {
                 (p.shear.shared_origin[a], p.shear.shared_origin[a])
