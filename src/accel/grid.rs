@@ -295,19 +295,13 @@ mod tests {
     use crate::accel::{BruteForce, Spheres, Triangles};
     use crate::geometry::Ray;
 
-    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [Vec3; 3] {
-        [Vec3::from(a), Vec3::from(b), Vec3::from(c)]
-    }
+    use crate::accel::spatial::test_scenes::{hits_identical_triangles, identical_triangles, tri};
 
     #[test]
     fn identical_triangles_bounded_memory() {
-        let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
-        let g = Grid::build(Triangles::from_corners(&vec![t; 10_000]));
+        let g = Grid::build(identical_triangles());
         assert!(g.references() <= 1 << 20, "{} refs", g.references());
-        let h = g
-            .closest_hit(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
-            .unwrap();
-        assert_eq!(h.t, 1.0);
+        hits_identical_triangles(&g);
     }
 
     #[test]

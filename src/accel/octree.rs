@@ -310,54 +310,18 @@ impl<P: Primitives> CountedTraversal for Octree<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::Accel;
-    use crate::accel::{BruteForce, Triangles};
-    use crate::geometry::Ray;
-
-    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [Vec3; 3] {
-        [Vec3::from(a), Vec3::from(b), Vec3::from(c)]
-    }
+    use crate::accel::spatial::test_scenes::*;
 
     #[test]
     fn identical_triangles_terminate() {
-        let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
-        let o = Octree::build(Triangles::from_corners(&vec![t; 10_000]));
+        let o = Octree::build(identical_triangles());
         assert!(o.references() <= 3 * 10_000, "{} refs", o.references());
         assert!(o.info.max_depth <= 20);
-        let h = o
-            .closest_hit(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
-            .unwrap();
-        assert_eq!(h.t, 1.0);
+        hits_identical_triangles(&o);
     }
 
     #[test]
     fn flat_scene_box_and_coplanar_primitives() {
-        let corners: Vec<_> = (0..400)
-            .map(|i| {
-                let x = (i % 20) as f32;
-                let y = (i / 20) as f32;
-                tri([x, y, 0.0], [x + 1.0, y, 0.0], [x, y + 1.0, 0.0])
-            })
-            .collect();
-        let prims = Triangles::from_corners(&corners);
-        let o = Octree::build(prims.clone());
-        assert!(o.info.nodes > 1);
-        let bf = BruteForce::new(prims);
-        for i in 0..400 {
-            let org = Vec3::new(i as f32 * 0.05 - 0.5, (i % 13) as f32 * 1.5, 3.0);
-            for d in [
-                Vec3::new(0.1, 0.2, -1.0),
-                -Vec3::Z,
-                Vec3::new(0.3, 1.0, -1.0),
-            ] {
-                let r = Ray::new(org, d);
-                assert_eq!(
-                    o.closest_hit(&r).map(|h| h.t),
-                    bf.closest_hit(&r).map(|h| h.t)
-                );
-                let r = Ray::new(Vec3::new(org.x, org.y, 0.0), Vec3::new(d.x, d.y, -0.0));
-                assert_eq!(o.any_hit(&r), bf.any_hit(&r));
-            }
-        }
+        flat_scene_agrees_with_brute_force(Octree::build);
     }
 }

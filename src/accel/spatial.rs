@@ -214,6 +214,65 @@ impl<T: CountedTraversal> Accel for T {
     }
 }
 
+/// Scenes and checks the unit tests of the three spatial subdivisions share.
+#[cfg(test)]
+pub(crate) mod test_scenes {
+    use crate::accel::{Accel, BruteForce, Triangles};
+    use crate::geometry::Ray;
+    use glam::Vec3;
+
+    pub fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> [Vec3; 3] {
+        [Vec3::from(a), Vec3::from(b), Vec3::from(c)]
+    }
+
+    /// 10,000 copies of one triangle.
+    pub fn identical_triangles() -> Triangles {
+        let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        Triangles::from_corners(&vec![t; 10_000])
+    }
+
+    /// The ray straight down onto [`identical_triangles`] hits at t = 1.
+    pub fn hits_identical_triangles(a: &dyn Accel) {
+        let h = a
+            .closest_hit(&Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
+            .unwrap();
+        assert_eq!(h.t, 1.0);
+    }
+
+    /// 400 triangles in z = 0 (a zero-thickness scene box): the structure built by
+    /// `build` has more than one node and agrees with brute force on rays from above and
+    /// on rays lying in the plane.
+    pub fn flat_scene_agrees_with_brute_force<A: Accel>(build: impl Fn(Triangles) -> A) {
+        let corners: Vec<_> = (0..400)
+            .map(|i| {
+                let x = (i % 20) as f32;
+                let y = (i / 20) as f32;
+                tri([x, y, 0.0], [x + 1.0, y, 0.0], [x, y + 1.0, 0.0])
+            })
+            .collect();
+        let prims = Triangles::from_corners(&corners);
+        let a = build(prims.clone());
+        assert!(a.info().nodes > 1);
+        let bf = BruteForce::new(prims);
+        for i in 0..400 {
+            let org = Vec3::new(i as f32 * 0.05 - 0.5, (i % 13) as f32 * 1.5, 3.0);
+            for d in [
+                Vec3::new(0.1, 0.2, -1.0),
+                -Vec3::Z,
+                Vec3::new(0.3, 1.0, -1.0),
+            ] {
+                let r = Ray::new(org, d);
+                assert_eq!(
+                    a.closest_hit(&r).map(|h| h.t),
+                    bf.closest_hit(&r).map(|h| h.t)
+                );
+                let r = Ray::new(Vec3::new(org.x, org.y, 0.0), Vec3::new(d.x, d.y, -0.0));
+                assert_eq!(a.any_hit(&r), bf.any_hit(&r));
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
