@@ -4,10 +4,14 @@
 
 use crate::accel::{AccelInfo, AccelKind, SceneAccel};
 use crate::error::{Error, Result};
-use crate::integrator::{FilterKind, IntegratorKind, RenderOptions, SamplerKind};
+use crate::film::partial::{self, PartialHeader, PartialImage};
+use crate::integrator::{
+    FilterKind, IntegratorKind, PixelBounds, RenderOptions, RenderOutput, SamplerKind,
+};
 use crate::scene::{self, SampleCounts, Scene};
 use crate::stats::{EffectSamplesDrawn, PhaseTimes, RayCounts, StageTimes, ms_since};
 use serde::Serialize;
+use std::ops::Range;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -39,6 +43,18 @@ pub struct RenderJob {
     pub seed: u64,
     /// Worker threads; 0 means all cores.
     pub threads: usize,
+    /// Which part of the frame to render (default: all of it).
+    pub part: Part,
+}
+
+/// A part of a frame for distributed rendering (docs/distributed.md): a pixel
+/// rectangle (`crop`, or the `tile.0`-th of `tile.1` balanced bands) and a slice of the
+/// eye samples. A `.partial` output keeps the exact pixel sums for `packet-render merge`.
+#[derive(Clone, Debug, Default)]
+pub struct Part {
+    pub crop: Option<PixelBounds>,
+    pub tile: Option<(u32, u32)>,
+    pub sample_range: Option<Range<u32>>,
 }
 
 /// What a render did, printed as the stats block and written by `--stats-json`.
@@ -56,6 +72,9 @@ pub struct RenderReport {
     pub threads: usize,
     pub seed: u64,
     pub integrator: IntegratorKind,
+    /// The part rendered (pixels and samples), absent for a whole frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part: Option<String>,
     pub primitives: PrimitiveCounts,
     pub features: Vec<&'static str>,
     pub accel: Vec<AccelInfo>,
@@ -104,7 +123,10 @@ impl RenderJob {
     }
 
     fn run_in_pool(&self, threads: usize, progress: Option<Progress>) -> Result<RenderReport> {
-        crate::film::check_image_path(&self.output)?;
+        let partial = crate::film::partial::is_partial_path(&self.output);
+        if !partial {
+            crate::film::check_image_path(&self.output)?;
+        }
         let mut time = PhaseTimes::default();
         let t = Instant::now();
         let scene = scene::load::load_scene(&self.scene)?;
@@ -112,6 +134,7 @@ impl RenderJob {
 
         let mut opts = self.options(&scene)?;
         opts.progress = progress;
+        opts.keep_sums = partial;
 
         let t = Instant::now();
         let accel = SceneAccel::build(&scene, self.accel);
@@ -121,7 +144,11 @@ impl RenderJob {
         time.render = out.render_ms;
 
         let t = Instant::now();
-        out.film.save(&self.output)?;
+        if partial {
+            self.partial_image(&scene, &opts, &out)?.save(&self.output)?;
+        } else {
+            out.film.save(&self.output)?;
+        }
         time.write = ms_since(t);
 
         let total = out.rays.total();
@@ -137,6 +164,10 @@ impl RenderJob {
             threads,
             seed: self.seed,
             integrator: self.integrator,
+            part: (opts.crop.is_some() || opts.sample_range.is_some()).then(|| {
+                let r = opts.sample_range.clone().unwrap_or(0..opts.spp);
+                format!("pixels {}, samples {}..{}", out.region, r.start, r.end)
+            }),
             primitives: PrimitiveCounts {
                 triangles: scene.mesh.len(),
                 spheres: scene.spheres.len(),
@@ -172,8 +203,63 @@ impl RenderJob {
         o.sampler = ov.sampler.unwrap_or(o.sampler);
         o.filter = ov.filter.unwrap_or(o.filter);
         o.seed = self.seed;
+        o.crop = match (self.part.crop, self.part.tile) {
+            (Some(_), Some(_)) => {
+                return Err(Error::parameter("crop", "give --crop or --tile, not both"));
+            }
+            (crop, None) => crop,
+            (None, Some((i, n))) => Some(PixelBounds::tile(i, n, o.width, o.height)?),
+        };
+        o.sample_range = self.part.sample_range.clone();
         o.validate()?;
         Ok(o)
+    }
+
+    /// The text of every setting that changes pixel values (for the fingerprint of a
+    /// partial image). The integrator and the structure are in it: the two integrators
+    /// agree only up to float summation order, and structures may break ties between
+    /// equally near hits differently.
+    fn options_text(&self, o: &RenderOptions) -> String {
+        format!(
+            "{}x{}, spp {}, seed {}, max depth {}, min contribution {:e}, samples {:?}, sampler {}, filter {}, integrator {}, accel {:?}",
+            o.width,
+            o.height,
+            o.spp,
+            o.seed,
+            o.max_depth,
+            o.min_contribution,
+            o.samples,
+            o.sampler,
+            o.filter,
+            self.integrator,
+            self.accel
+        )
+    }
+
+    /// The partial image of a render made with `opts.keep_sums`.
+    fn partial_image(
+        &self,
+        scene: &Scene,
+        opts: &RenderOptions,
+        out: &RenderOutput,
+    ) -> Result<PartialImage> {
+        let text = self.options_text(opts);
+        Ok(PartialImage {
+            header: PartialHeader {
+                width: opts.width,
+                height: opts.height,
+                bounds: out.region,
+                samples: opts.sample_range.clone().unwrap_or(0..opts.spp),
+                spp: opts.spp,
+                seed: opts.seed,
+                fingerprint: partial::fingerprint(scene, &text),
+                description: format!("{}: {text}", self.scene.display()),
+            },
+            pixels: out
+                .sums
+                .clone()
+                .ok_or_else(|| Error::parameter("partial image", "render kept no sums"))?,
+        })
     }
 }
 
@@ -216,6 +302,9 @@ impl RenderReport {
             "image    {} ({}x{}, {} spp, seed {})\n",
             self.output, self.width, self.height, self.spp, self.seed
         );
+        if let Some(part) = &self.part {
+            s += &format!("part     {part}\n");
+        }
         s += &format!(
             "samples  eye {} x shadow {} x glossy {} x lens {} x time {}, {} sampler, {} filter\n",
             self.spp,

@@ -42,6 +42,9 @@ enum Command {
     /// The lecture's table: build + render time of every structure on sphereflakes of
     /// 10 to 66430 spheres, as ratios to the time at 10, with CSV and log-log SVG.
     LectureTable(LectureTableArgs),
+    /// Assemble partial images (`render ... -o X.partial` with --crop, --tile or
+    /// --sample-range) into the frame; refuses overlapping, missing or mismatched parts.
+    Merge(MergeArgs),
     /// Error of the f32 intersection kernels against an f64 reference (scales 1e-6..1e6,
     /// offsets up to 1e7, grazing rays, tiny primitives).
     Precision {
@@ -52,6 +55,42 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// Partial images (.partial).
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output: .png, .hdr, or .partial (the merged sums, for a merge of merges).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+/// Distributed rendering (docs/distributed.md): which part of the frame to render.
+#[derive(clap::Args)]
+struct PartArgs {
+    /// Render only the pixels x0 <= x < x1, y0 <= y < y1 (as pbrt's --pixelbounds).
+    #[arg(long, value_name = "x0,x1,y0,y1", value_parser = parse_crop)]
+    crop: Option<packet_render::integrator::PixelBounds>,
+    /// Render only the I-th (0-based) of N balanced bands of rows.
+    #[arg(long, value_name = "I/N", value_parser = parse_tile)]
+    tile: Option<(u32, u32)>,
+    /// Render only eye samples a <= s < b of each pixel's spp.
+    #[arg(long, value_name = "a..b", value_parser = parse_sample_range)]
+    sample_range: Option<std::ops::Range<u32>>,
+}
+
+fn parse_crop(s: &str) -> Result<packet_render::integrator::PixelBounds, String> {
+    packet_render::integrator::PixelBounds::parse(s).map_err(|e| e.to_string())
+}
+
+fn parse_tile(s: &str) -> Result<(u32, u32), String> {
+    packet_render::integrator::region::parse_tile(s).map_err(|e| e.to_string())
+}
+
+fn parse_sample_range(s: &str) -> Result<std::ops::Range<u32>, String> {
+    packet_render::integrator::region::parse_sample_range(s).map_err(|e| e.to_string())
 }
 
 #[derive(clap::Args)]
@@ -153,9 +192,12 @@ struct BenchArgs {
 struct RenderArgs {
     /// Scene file: a TOML scene (see scenes/README.md) or an OBJ mesh.
     scene: PathBuf,
-    /// Output image: .png (8-bit sRGB) or .hdr (Radiance, linear).
+    /// Output image: .png (8-bit sRGB), .hdr (Radiance, linear), or .partial (exact
+    /// pixel sums for `merge`).
     #[arg(short, long)]
     output: PathBuf,
+    #[command(flatten)]
+    part: PartArgs,
     /// Image width in pixels (default: the scene's).
     #[arg(long)]
     width: Option<u32>,
@@ -241,6 +283,7 @@ fn main() -> ExitCode {
         Command::Converge(args) => converge(args),
         Command::AccelCompare(args) => accel_compare(args),
         Command::LectureTable(args) => lecture_table(args),
+        Command::Merge(args) => merge(args),
         Command::Precision { rays, json } => {
             precision(rays, json);
             Ok(())
@@ -275,6 +318,11 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
         integrator: args.integrator,
         seed: args.seed,
         threads: args.threads,
+        part: packet_render::job::Part {
+            crop: args.part.crop,
+            tile: args.part.tile,
+            sample_range: args.part.sample_range,
+        },
     };
     let bar = (!args.quiet).then(progress_bar);
     let report = job.run(bar.as_ref().map(|(_, p)| p.clone()))?;
@@ -292,6 +340,19 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
         })?;
     }
     Ok(())
+}
+
+fn merge(args: MergeArgs) -> packet_render::Result<()> {
+    use packet_render::film::{merge, partial};
+    if !partial::is_partial_path(&args.output) {
+        packet_render::film::check_image_path(&args.output)?;
+    }
+    let merged = merge::merge_files(&args.parts)?;
+    if partial::is_partial_path(&args.output) {
+        merged.partial.save(&args.output)
+    } else {
+        merged.film.save(&args.output)
+    }
 }
 
 fn bench(args: BenchArgs) -> packet_render::Result<()> {

@@ -1,6 +1,11 @@
-//! Film: f32 accumulation, tone mapping, image output and error metrics.
+//! Film: f32 accumulation, tone mapping, image output and error metrics; exact pixel
+//! sums, partial images and their merge (distributed rendering).
 
+pub mod exact_sum;
+pub mod merge;
 mod output;
+pub mod partial;
+mod pixel_sums;
 
 use crate::error::{Error, Result};
 use glam::Vec3;
@@ -9,6 +14,7 @@ pub use output::{
     INTERRUPTED_EXIT_CODE, SUPPORTED_EXTENSIONS, check_image_path, install_interrupt_handler,
     write_atomic,
 };
+pub use pixel_sums::PixelSums;
 
 /// Linear RGB radiance per pixel, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]

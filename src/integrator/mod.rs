@@ -2,6 +2,7 @@
 //! reference renderer; `wavefront` renders the same images breadth first, tracing rays
 //! in batches from queues.
 
+pub mod region;
 pub mod sampling;
 pub mod wavefront;
 pub mod whitted;
@@ -11,6 +12,8 @@ use crate::film::Film;
 use crate::scene::{SampleCounts, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes};
 pub use sampling::{FilterKind, SamplerKind};
+pub use region::PixelBounds;
+use std::ops::Range;
 use std::sync::Arc;
 
 /// Largest image side accepted (a 64k x 64k RGB f32 film is already 48 GiB).
@@ -90,6 +93,12 @@ pub struct RenderOptions {
     pub filter: FilterKind,
     /// Called as tiles finish; `None` for silence.
     pub progress: Option<ProgressFn>,
+    /// Render only these pixels (`--crop`, `--tile`); `None` for the whole image.
+    pub crop: Option<PixelBounds>,
+    /// Render only these eye samples of each pixel's `spp` (`--sample-range`).
+    pub sample_range: Option<Range<u32>>,
+    /// Also return every pixel's filter sums, encoded ([`RenderOutput::sums`]).
+    pub keep_sums: bool,
 }
 
 // By hand because a closure is neither `Debug` nor `PartialEq`: the reporter is shown
@@ -110,6 +119,9 @@ impl std::fmt::Debug for RenderOptions {
                 "progress",
                 &self.progress.as_ref().map(|_| "Fn(done, total)"),
             )
+            .field("crop", &self.crop)
+            .field("sample_range", &self.sample_range)
+            .field("keep_sums", &self.keep_sums)
             .finish()
     }
 }
@@ -130,6 +142,9 @@ impl PartialEq for RenderOptions {
             && self.samples == o.samples
             && self.sampler == o.sampler
             && self.filter == o.filter
+            && self.crop == o.crop
+            && self.sample_range == o.sample_range
+            && self.keep_sums == o.keep_sums
             && same_progress
     }
 }
@@ -148,19 +163,41 @@ impl RenderOptions {
             sampler: SamplerKind::default(),
             filter: FilterKind::default(),
             progress: None,
+            crop: None,
+            sample_range: None,
+            keep_sums: false,
         }
     }
 
     pub fn validate(&self) -> Result<()> {
         validate_dimensions(self.width, self.height, self.spp, self.max_depth)?;
-        validate_sample_counts(&self.samples)
+        validate_sample_counts(&self.samples)?;
+        if let Some(c) = &self.crop {
+            c.check_inside(self.width, self.height)?;
+        }
+        if let Some(r) = &self.sample_range {
+            region::check_sample_range(r, self.spp)?;
+        }
+        Ok(())
+    }
+
+    /// The pixels rendered: `crop`, or the whole image.
+    pub fn region(&self) -> PixelBounds {
+        self.crop
+            .unwrap_or(PixelBounds::full(self.width, self.height))
     }
 }
 
 /// A finished render.
 #[derive(Clone, Debug)]
 pub struct RenderOutput {
+    /// The pixels of `region` (the whole image unless cropped).
     pub film: Film,
+    /// Which pixels of the full image `film` holds.
+    pub region: PixelBounds,
+    /// With [`RenderOptions::keep_sums`]: the filter sums of every pixel of `region`,
+    /// row-major, as pixel records of a partial image ([`crate::film::partial`]).
+    pub sums: Option<Vec<u8>>,
     pub rays: RayCounts,
     pub render_ms: f64,
     /// Samples whose radiance came out NaN or infinite. Each was written as black, so a

@@ -38,6 +38,7 @@ use super::whitted::{
     render_tiles, resolve_pixel,
 };
 use crate::accel::{BatchScratch, SceneAccel, SceneHit};
+use crate::film::PixelSums;
 use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
@@ -252,7 +253,8 @@ fn render_tile(
                     ws.offsets.extend_from_slice(&samples.offsets);
                     for (s, ray) in samples.rays.iter().enumerate() {
                         let slot = sinks.acc.len() as u32;
-                        ws.camera.push(*ray, slot, Vec3::ONE, Vec3::ONE, s as u64);
+                        let path = plan.first_path() + s as u64;
+                        ws.camera.push(*ray, slot, Vec3::ONE, Vec3::ONE, path);
                         sinks.acc.push(Vec3::ZERO);
                     }
                 }
@@ -266,7 +268,7 @@ fn render_tile(
     let t = Instant::now();
     trace_closest(accel, &ws.camera, &mut ws.hits, &mut ws.scratch);
     stages.trace += ms_since(t);
-    let rays_per_pixel = plan.eye * camera.rays_per_eye();
+    let rays_per_pixel = plan.eye_rendered() * camera.rays_per_eye();
     let t = Instant::now();
     shade_queue(&shader, &ws.camera, &ws.hits, 0, rays_per_pixel, sinks);
     stages.shade += ms_since(t);
@@ -303,9 +305,9 @@ fn render_tile(
     }
 
     // Filter the camera samples into pixels.
-    let mut pixels = vec![Vec3::ZERO; ws.order.len()];
+    let mut pixels = vec![PixelSums::default(); ws.order.len()];
     let mut nonfinite_samples = 0;
-    let (eye, rpp) = (plan.eye as usize, rays_per_pixel as usize);
+    let (eye, rpp) = (plan.eye_rendered() as usize, rays_per_pixel as usize);
     for (g, &at) in ws.order.iter().enumerate() {
         pixels[at as usize] = resolve_pixel(
             &plan,

@@ -35,7 +35,7 @@ use super::sampling::{
 };
 use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
-use crate::film::Film;
+use crate::film::{Film, PixelSums, partial};
 use crate::geometry::{Ray, offset_ray_origin_scaled};
 use crate::scene::{CameraFrame, LensFrame, Light, Scene, TriangleMesh};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
@@ -55,9 +55,11 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
     out
 }
 
-/// Splits the image into tiles, renders them in parallel with `tile_fn` (each rayon
-/// worker reuses one scratch value made by `init`) and reassembles them in a fixed
-/// order. Shared by both integrators.
+/// Splits the image region (the whole image, or `opts.crop`) into tiles, renders them
+/// in parallel with `tile_fn` (each rayon worker reuses one scratch value made by
+/// `init`) and reassembles them in a fixed order. Each pixel's filter sums are
+/// resolved into its value as its tile finishes, and, with `opts.keep_sums`, also
+/// encoded for a partial image ([`crate::film::partial`]). Shared by both integrators.
 pub(crate) fn render_tiles<W>(
     scene: &Scene,
     opts: &RenderOptions,
@@ -72,38 +74,65 @@ pub(crate) fn render_tiles<W>(
         plan: SamplePlan::new(scene, opts),
     };
 
-    let tiles_x = width.div_ceil(TILE);
-    let tiles_y = height.div_ceil(TILE);
+    let region = opts.region();
+    let tiles_x = region.width().div_ceil(TILE);
+    let tiles_y = region.height().div_ceil(TILE);
     let total = tiles_x as u64 * tiles_y as u64;
     let done = AtomicU64::new(0);
-    let tiles: Vec<TileResult> = (0..total)
+    let tiles: Vec<(TileResult, Vec<Vec3>, Vec<u8>)> = (0..total)
         .into_par_iter()
         .map_init(&init, |ws, i| {
             let (tx, ty) = ((i % tiles_x as u64) as u32, (i / tiles_x as u64) as u32);
             let tile = Tile {
-                x0: tx * TILE,
-                y0: ty * TILE,
-                x1: ((tx + 1) * TILE).min(width),
-                y1: ((ty + 1) * TILE).min(height),
+                x0: region.x0 + tx * TILE,
+                y0: region.y0 + ty * TILE,
+                x1: (region.x0 + (tx + 1) * TILE).min(region.x1),
+                y1: (region.y0 + (ty + 1) * TILE).min(region.y1),
             };
-            let result = tile_fn(ws, &camera, tile);
+            let mut result = tile_fn(ws, &camera, tile);
+            let values = result.pixels.iter().map(PixelSums::value).collect();
+            let mut encoded = Vec::new();
+            if opts.keep_sums {
+                for p in &result.pixels {
+                    partial::encode_pixel(p, &mut encoded);
+                }
+            }
+            result.pixels = Vec::new();
             if let Some(progress) = &opts.progress {
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             }
-            result
+            (result, values, encoded)
         })
         .collect();
 
-    let mut film = Film::new(width, height);
+    // Encoded sums, row-major over the region: row by row through each row of tiles.
+    let sums = opts.keep_sums.then(|| {
+        let mut bytes = Vec::new();
+        for row in tiles.chunks(tiles_x as usize) {
+            let mut rest: Vec<&[u8]> = row.iter().map(|t| &t.2[..]).collect();
+            for _ in row[0].0.tile.y0..row[0].0.tile.y1 {
+                for (t, r) in row.iter().zip(&mut rest) {
+                    let n = (t.0.tile.x1 - t.0.tile.x0) as usize;
+                    let len = partial::encoded_len(r, n);
+                    bytes.extend_from_slice(&r[..len]);
+                    *r = &r[len..];
+                }
+            }
+        }
+        bytes
+    });
+
+    let mut film = Film::new(region.width(), region.height());
     let mut rays = RayCounts::default();
     let mut samples_drawn = EffectSamplesDrawn::default();
     let mut stages = StageTimes::default();
     let mut nonfinite_samples = 0;
-    for t in tiles {
-        let mut values = t.pixels.into_iter();
+    for (t, values, _) in tiles {
+        let mut values = values.into_iter();
         for y in t.tile.y0..t.tile.y1 {
             for x in t.tile.x0..t.tile.x1 {
-                film.set(x, y, values.next().expect("tile holds all its pixels"));
+                let v = values.next().expect("tile holds all its pixels");
+                film.set(x - region.x0, y - region.y0, v);
             }
         }
         rays += t.rays;
@@ -118,6 +147,8 @@ pub(crate) fn render_tiles<W>(
         nonfinite_samples,
         samples_drawn,
         stages_ms: Some(stages),
+        region,
+        sums,
     }
 }
 
@@ -134,6 +165,10 @@ pub struct SamplePlan {
     pub glossy: u32,
     pub sampler: SamplerKind,
     pub filter: FilterKind,
+    /// The eye samples rendered, `eye_begin..eye_end` of `0..eye` (all of them unless
+    /// `--sample-range` picks a round). The pattern is always drawn for all `eye`.
+    pub eye_begin: u32,
+    pub eye_end: u32,
 }
 
 impl SamplePlan {
@@ -151,7 +186,24 @@ impl SamplePlan {
             glossy: opts.samples.glossy,
             sampler: opts.sampler,
             filter: opts.filter,
+            eye_begin: opts.sample_range.as_ref().map_or(0, |r| r.start),
+            eye_end: opts
+                .sample_range
+                .as_ref()
+                .map_or(opts.spp.max(1), |r| r.end),
         }
+    }
+
+    /// Eye samples rendered per pixel (`eye_end - eye_begin`).
+    pub fn eye_rendered(&self) -> u32 {
+        self.eye_end - self.eye_begin
+    }
+
+    /// Path identity of the first camera ray rendered: camera rays are numbered over
+    /// all `eye` samples of the pixel, so a round's rays keep the numbers (and the
+    /// random streams) they have in a render of all samples.
+    pub fn first_path(&self) -> u64 {
+        self.eye_begin as u64 * (self.lens.max(1) * self.time.max(1)) as u64
     }
 
     /// Camera rays per pixel: `eye * lens * time` (absent effects count 1).
@@ -167,8 +219,9 @@ pub(crate) struct CameraSampler {
     pub plan: SamplePlan,
 }
 
-/// The camera samples of one pixel: `eye` pixel offsets, and for each of them
-/// `rays_per_eye` rays (lens points times shutter times), eye sample major.
+/// The camera samples of one pixel: the pixel offsets of the eye samples rendered
+/// (`eye_begin..eye_end`), and for each of them `rays_per_eye` rays (lens points times
+/// shutter times), eye sample major.
 #[derive(Default)]
 pub(crate) struct PixelSamples {
     /// Offset of each eye sample inside the pixel (or the filter footprint).
@@ -232,7 +285,8 @@ impl CameraSampler {
         let footprint = 2.0 * plan.filter.radius();
         out.offsets.clear();
         out.rays.clear();
-        for (e, &(sx, sy)) in out.pixel_pos.iter().enumerate() {
+        let rendered = plan.eye_begin as usize..plan.eye_end as usize;
+        for (e, &(sx, sy)) in out.pixel_pos.iter().enumerate().take(rendered.end).skip(rendered.start) {
             let (ox, oy) = if plan.filter == FilterKind::Box {
                 (sx, sy)
             } else {
@@ -262,18 +316,21 @@ impl CameraSampler {
 }
 
 /// Filters the radiance of a pixel's camera rays (`radiance[i]` for `rays[i]` of
-/// [`PixelSamples`]) into the pixel value. A ray whose radiance is NaN or infinite is
-/// dropped and counted in `nonfinite`.
+/// [`PixelSamples`]) into the pixel's filter sums ([`PixelSums::value`] is the pixel
+/// value). A ray whose radiance is NaN or infinite is dropped and counted in
+/// `nonfinite`; so is an eye sample whose mean overflows.
+///
+/// The sums are exact ([`ExactSum`](crate::film::exact_sum::ExactSum)), so they do not
+/// depend on the order or grouping of the samples: rounds of samples rendered apart
+/// and merged give the bits of one render of all of them.
 pub(crate) fn resolve_pixel(
     plan: &SamplePlan,
     offsets: &[(f32, f32)],
     radiance: &[Vec3],
     nonfinite: &mut u64,
-) -> Vec3 {
+) -> PixelSums {
     let per_eye = (plan.lens.max(1) * plan.time.max(1)) as usize;
-    let mut sum = Vec3::ZERO;
-    let mut weight_sum = 0.0f32;
-    let mut plain_sum = Vec3::ZERO;
+    let mut sums = PixelSums::default();
     for (e, &(ox, oy)) in offsets.iter().enumerate() {
         let mut radiance_sum = Vec3::ZERO;
         for &r in &radiance[e * per_eye..(e + 1) * per_eye] {
@@ -289,18 +346,13 @@ pub(crate) fn resolve_pixel(
             radiance_sum / per_eye as f32
         };
         let w = plan.filter.weight(ox - 0.5, oy - 0.5);
-        sum += w * radiance;
-        weight_sum += w;
-        plain_sum += radiance;
+        if !(w * radiance).is_finite() {
+            *nonfinite += 1;
+            continue;
+        }
+        sums.add_sample(w, radiance);
     }
-    // Box filter: the mean of the samples inside the pixel. Weighted filters divide by
-    // the weights drawn (a ratio estimator, consistent); should every sample land where
-    // the filter is zero, the plain mean stands in.
-    if weight_sum > 0.0 {
-        sum / weight_sum
-    } else {
-        plain_sum / plan.eye as f32
-    }
+    sums
 }
 
 /// What the shader needs to know about a hit.
@@ -465,8 +517,8 @@ pub(crate) struct Tile {
 
 pub(crate) struct TileResult {
     pub tile: Tile,
-    /// Row-major within the tile.
-    pub pixels: Vec<Vec3>,
+    /// Filter sums of each pixel, row-major within the tile.
+    pub pixels: Vec<PixelSums>,
     pub rays: RayCounts,
     pub samples_drawn: EffectSamplesDrawn,
     pub nonfinite_samples: u64,
@@ -884,7 +936,8 @@ fn render_tile(
             tracer.rays.camera += samples.rays.len() as u64;
             ws.radiance.clear();
             for (s, ray) in samples.rays.iter().enumerate() {
-                let l = tracer.radiance(ray, 0, Vec3::ONE, index, s as u64);
+                let path = plan.first_path() + s as u64;
+            let l = tracer.radiance(ray, 0, Vec3::ONE, index, path);
                 ws.radiance.push(l);
             }
             pixels.push(resolve_pixel(
