@@ -145,7 +145,8 @@ impl RenderJob {
 
         let t = Instant::now();
         if partial {
-            self.partial_image(&scene, &opts, &out)?.save(&self.output)?;
+            self.partial_image(&scene, &opts, &out)?
+                .save(&self.output)?;
         } else {
             out.film.save(&self.output)?;
         }

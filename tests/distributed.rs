@@ -17,7 +17,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn scene(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
 }
 
 /// Depth of field, an area light, the Gaussian filter (footprint wider than a pixel)
@@ -79,6 +81,9 @@ fn part(
     }
 }
 
+/// A part: pixels (`None`: all) and eye samples (`None`: all).
+type PartSpec = (Option<PixelBounds>, Option<Range<u32>>);
+
 fn names(n: usize) -> Vec<PathBuf> {
     (0..n).map(|i| PathBuf::from(format!("part{i}"))).collect()
 }
@@ -102,7 +107,7 @@ fn regions_and_rounds_merge_into_the_single_render_bit_for_bit() {
     let crop = |s: &str| Some(PixelBounds::parse(s).unwrap());
     // Bands (--tile), arbitrary rectangles that cut render tiles (--crop), sample
     // rounds (--sample-range), and rectangles and rounds mixed.
-    let splits: Vec<(&str, Vec<(Option<PixelBounds>, Option<Range<u32>>)>)> = vec![
+    let splits: Vec<(&str, Vec<PartSpec>)> = vec![
         (
             "3 bands",
             (0..3)
@@ -177,11 +182,18 @@ fn merge_refuses_bad_sets_of_parts_naming_the_files() {
     let crop = |s: &str| Some(PixelBounds::parse(s).unwrap());
     let top = part(&scene, &accel, wf, &opts, crop("0,37,0,15"), None);
     let bottom = part(&scene, &accel, wf, &opts, crop("0,37,15,29"), None);
-    let refused = |parts: Vec<PartialImage>| merge(&names(parts.len()), &parts).unwrap_err().to_string();
+    let refused =
+        |parts: Vec<PartialImage>| merge(&names(parts.len()), &parts).unwrap_err().to_string();
     assert!(merge(&names(2), &[top.clone(), bottom.clone()]).is_ok());
 
-    let e = refused(vec![top.clone(), part(&scene, &accel, wf, &opts, crop("0,37,14,29"), None)]);
-    assert!(e.contains("part0") && e.contains("part1") && e.contains("overlap"), "{e}");
+    let e = refused(vec![
+        top.clone(),
+        part(&scene, &accel, wf, &opts, crop("0,37,14,29"), None),
+    ]);
+    assert!(
+        e.contains("part0") && e.contains("part1") && e.contains("overlap"),
+        "{e}"
+    );
     let e = refused(vec![top.clone()]);
     assert!(e.contains("missing") && e.contains("pixel (0, 15)"), "{e}");
     // Rounds of the bottom band that are not contiguous: 0..1 and 2..4.
@@ -190,14 +202,20 @@ fn merge_refuses_bad_sets_of_parts_naming_the_files() {
         part(&scene, &accel, wf, &opts, crop("0,37,15,29"), Some(0..1)),
         part(&scene, &accel, wf, &opts, crop("0,37,15,29"), Some(2..4)),
     ]);
-    assert!(e.contains("lacks samples 1..2 of 0..4") && e.contains("part2"), "{e}");
+    assert!(
+        e.contains("lacks samples 1..2 of 0..4") && e.contains("part2"),
+        "{e}"
+    );
     // Rounds that overlap in samples.
     let e = refused(vec![
         top.clone(),
         part(&scene, &accel, wf, &opts, crop("0,37,15,29"), Some(0..3)),
         part(&scene, &accel, wf, &opts, crop("0,37,15,29"), Some(2..4)),
     ]);
-    assert!(e.contains("part1") && e.contains("part2") && e.contains("overlap"), "{e}");
+    assert!(
+        e.contains("part1") && e.contains("part2") && e.contains("overlap"),
+        "{e}"
+    );
     // Another setup: seed, size, spp, scene or options.
     let changed = |f: &dyn Fn(&mut PartialHeader)| {
         let mut b = bottom.clone();
@@ -211,7 +229,10 @@ fn merge_refuses_bad_sets_of_parts_naming_the_files() {
         h.fingerprint = 43;
         h.description = "other".into();
     });
-    assert!(e.contains("scene or options differ") && e.contains("other"), "{e}");
+    assert!(
+        e.contains("scene or options differ") && e.contains("other"),
+        "{e}"
+    );
     assert!(refused(vec![]).contains("no parts"));
 }
 
@@ -240,7 +261,15 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
     let dir = tmp_dir("cli");
     let s = scene("dof_area.toml").display().to_string();
     let common = [
-        "--width", "40", "--height", "30", "--spp", "4", "--quiet", "--threads", "2",
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--spp",
+        "4",
+        "--quiet",
+        "--threads",
+        "2",
     ];
     let render = |out: &Path, extra: &[&str]| {
         let mut args = vec!["render", &s, "-o", out.to_str().unwrap()];
@@ -271,7 +300,10 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let read = |n: &str| std::fs::read(dir.join(n)).unwrap();
-    assert!(read("full.partial") == read("merged.partial"), "merged sums differ");
+    assert!(
+        read("full.partial") == read("merged.partial"),
+        "merged sums differ"
+    );
     assert!(read("full.png") == read("merged.png"), "merged PNG differs");
     // The library's reader agrees.
     let merged = merge_files(&[dir.join("merged.partial")]).unwrap();
@@ -281,30 +313,60 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
     let refused = |args: &[&str], needle: &str| {
         let o = bin(args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
-        assert!(!o.status.success() && err.contains(needle), "{args:?}: {err}");
+        assert!(
+            !o.status.success() && err.contains(needle),
+            "{args:?}: {err}"
+        );
         assert!(!dir.join("bad.png").exists());
     };
     let bad = dir.join("bad.png").display().to_string();
-    refused(&["merge", &parts[0], &parts[1], "-o", &bad], "missing parts");
+    refused(
+        &["merge", &parts[0], &parts[1], "-o", &bad],
+        "missing parts",
+    );
     let corrupt = dir.join("corrupt.partial");
     let mut bytes = read("t0r0.partial");
     bytes.truncate(bytes.len() / 2);
     std::fs::write(&corrupt, bytes).unwrap();
     let c = corrupt.display().to_string();
-    refused(&["merge", &c, "-o", &bad], "corrupt.partial: corrupt or truncated");
+    refused(
+        &["merge", &c, "-o", &bad],
+        "corrupt.partial: corrupt or truncated",
+    );
     std::fs::write(&corrupt, b"P6\n1 1\n255\n...").unwrap();
     refused(&["merge", &c, "-o", &bad], "bad magic");
-    refused(&["merge", "/nonexistent/x.partial", "-o", &bad], "/nonexistent/x.partial");
+    refused(
+        &["merge", "/nonexistent/x.partial", "-o", &bad],
+        "/nonexistent/x.partial",
+    );
     let seed6 = dir.join("seed6.partial");
     render(&seed6, &["--tile", "2/3", "--seed", "6"]);
     refused(
-        &["merge", &parts[0], &parts[1], &parts[2], &parts[3], &seed6.display().to_string(), "-o", &bad],
+        &[
+            "merge",
+            &parts[0],
+            &parts[1],
+            &parts[2],
+            &parts[3],
+            &seed6.display().to_string(),
+            "-o",
+            &bad,
+        ],
         "seed 5 vs 6",
     );
     let other = dir.join("other.partial");
     render(&other, &["--tile", "2/3", "--max-depth", "1"]);
     refused(
-        &["merge", &parts[0], &parts[1], &parts[2], &parts[3], &other.display().to_string(), "-o", &bad],
+        &[
+            "merge",
+            &parts[0],
+            &parts[1],
+            &parts[2],
+            &parts[3],
+            &other.display().to_string(),
+            "-o",
+            &bad,
+        ],
         "scene or options differ",
     );
     // Bad part arguments are refused before rendering.
@@ -315,7 +377,10 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
         args.extend_from_slice(extra);
         let o = bin(&args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
-        assert!(!o.status.success() && err.contains(needle), "{extra:?}: {err}");
+        assert!(
+            !o.status.success() && err.contains(needle),
+            "{extra:?}: {err}"
+        );
     };
     bad_render(&["--crop", "0,41,0,30"], "not inside the 40x30 image");
     bad_render(&["--tile", "3/3"], "need 0 <= I < N");

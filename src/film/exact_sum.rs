@@ -202,7 +202,10 @@ mod tests {
         let whole = sum(&xs);
         let forward: f32 = xs.iter().sum();
         let backward: f32 = xs.iter().rev().sum();
-        assert_ne!(forward, backward, "the test data must defeat float summation");
+        assert_ne!(
+            forward, backward,
+            "the test data must defeat float summation"
+        );
         let mut reversed: Vec<f32> = xs.clone();
         reversed.reverse();
         assert_eq!(sum(&reversed).sign_magnitude(), whole.sign_magnitude());
@@ -221,7 +224,12 @@ mod tests {
 
     #[test]
     fn sign_magnitude_round_trips_and_rejects_the_impossible() {
-        for xs in [&[1.5f32, -1e-30, 3e20][..], &[-1.5, 1e-30, -3e20], &[], &[2.0, -2.0]] {
+        for xs in [
+            &[1.5f32, -1e-30, 3e20][..],
+            &[-1.5, 1e-30, -3e20],
+            &[],
+            &[2.0, -2.0],
+        ] {
             let s = sum(xs);
             let (neg, mag) = s.sign_magnitude();
             let back = ExactSum::from_sign_magnitude(neg, mag).unwrap();

@@ -4,9 +4,9 @@
 //! anything else is refused with an error naming the files. Because the parts hold
 //! exact filter sums, the merged frame is bit for bit the frame one process renders.
 
+use super::Film;
 use super::partial::{PartialHeader, PartialImage, decode_pixel, encode_pixel};
 use super::pixel_sums::PixelSums;
-use super::Film;
 use crate::error::{Error, Result};
 use crate::integrator::region::PixelBounds;
 use std::path::{Path, PathBuf};
@@ -79,9 +79,9 @@ pub fn merge(paths: &[PathBuf], parts: &[PartialImage]) -> Result<Merged> {
         for x in 0..width {
             covering.clear();
             covering.extend(
-                rows.iter()
-                    .copied()
-                    .filter(|&i| (parts[i].header.bounds.x0..parts[i].header.bounds.x1).contains(&x)),
+                rows.iter().copied().filter(|&i| {
+                    (parts[i].header.bounds.x0..parts[i].header.bounds.x1).contains(&x)
+                }),
             );
             let count: u32 = covering
                 .iter()

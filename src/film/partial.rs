@@ -357,7 +357,12 @@ mod tests {
             header: PartialHeader {
                 width: 8,
                 height: 4,
-                bounds: PixelBounds { x0: 1, x1: 4, y0: 2, y1: 4 },
+                bounds: PixelBounds {
+                    x0: 1,
+                    x1: 4,
+                    y0: 2,
+                    y1: 4,
+                },
                 samples: 2..4,
                 spp: 8,
                 seed: 7,
@@ -404,10 +409,12 @@ mod tests {
         assert!(reseal(&|p| p.header.bounds.x1 = 9).contains("outside"));
         assert!(reseal(&|p| p.header.samples = 2..9).contains("past spp"));
         assert!(reseal(&|p| p.header.samples = 2..5).contains("holds 2 samples"));
-        assert!(reseal(&|p| {
-            p.pixels.pop();
-        })
-        .contains("cut short"));
+        assert!(
+            reseal(&|p| {
+                p.pixels.pop();
+            })
+            .contains("cut short")
+        );
         assert!(reseal(&|p| p.pixels.push(0)).contains("after the last record"));
         assert!(reseal(&|p| p.pixels[4] = 2).contains("malformed"));
     }

@@ -89,7 +89,10 @@ mod tests {
         b.add_sample(samples[0].0, samples[0].1);
         b.add_sample(samples[1].0, samples[1].1);
         a.merge(&b);
-        assert_eq!(a.value().to_array().map(f32::to_bits), all.value().to_array().map(f32::to_bits));
+        assert_eq!(
+            a.value().to_array().map(f32::to_bits),
+            all.value().to_array().map(f32::to_bits)
+        );
         assert_eq!(a.samples, 3);
     }
 

@@ -11,8 +11,8 @@ use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::scene::{SampleCounts, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes};
-pub use sampling::{FilterKind, SamplerKind};
 pub use region::PixelBounds;
+pub use sampling::{FilterKind, SamplerKind};
 use std::ops::Range;
 use std::sync::Arc;
 

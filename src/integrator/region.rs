@@ -140,10 +140,7 @@ pub fn check_sample_range(r: &Range<u32>, spp: u32) -> Result<()> {
     if r.start >= r.end || r.end > spp {
         return Err(Error::parameter(
             "sample range",
-            format!(
-                "{}..{}: need a < b <= spp ({spp})",
-                r.start, r.end
-            ),
+            format!("{}..{}: need a < b <= spp ({spp})", r.start, r.end),
         ));
     }
     Ok(())
@@ -174,11 +171,26 @@ mod tests {
     #[test]
     fn parsing_and_checks() {
         let c = PixelBounds::parse("1, 5,2,3").unwrap();
-        assert_eq!(c, PixelBounds { x0: 1, x1: 5, y0: 2, y1: 3 });
+        assert_eq!(
+            c,
+            PixelBounds {
+                x0: 1,
+                x1: 5,
+                y0: 2,
+                y1: 3
+            }
+        );
         assert_eq!(c.area(), 4);
         assert!(c.check_inside(5, 3).is_ok());
         assert!(c.check_inside(4, 3).is_err());
-        for bad in ["1,5,2", "1,5,2,3,4", "5,1,2,3", "1,5,3,3", "a,b,c,d", "-1,5,2,3"] {
+        for bad in [
+            "1,5,2",
+            "1,5,2,3,4",
+            "5,1,2,3",
+            "1,5,3,3",
+            "a,b,c,d",
+            "-1,5,2,3",
+        ] {
             assert!(PixelBounds::parse(bad).is_err(), "{bad}");
         }
         assert_eq!(parse_tile("2/8").unwrap(), (2, 8));

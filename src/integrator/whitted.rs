@@ -286,7 +286,13 @@ impl CameraSampler {
         out.offsets.clear();
         out.rays.clear();
         let rendered = plan.eye_begin as usize..plan.eye_end as usize;
-        for (e, &(sx, sy)) in out.pixel_pos.iter().enumerate().take(rendered.end).skip(rendered.start) {
+        for (e, &(sx, sy)) in out
+            .pixel_pos
+            .iter()
+            .enumerate()
+            .take(rendered.end)
+            .skip(rendered.start)
+        {
             let (ox, oy) = if plan.filter == FilterKind::Box {
                 (sx, sy)
             } else {
@@ -937,7 +943,7 @@ fn render_tile(
             ws.radiance.clear();
             for (s, ray) in samples.rays.iter().enumerate() {
                 let path = plan.first_path() + s as u64;
-            let l = tracer.radiance(ray, 0, Vec3::ONE, index, path);
+                let l = tracer.radiance(ray, 0, Vec3::ONE, index, path);
                 ws.radiance.push(l);
             }
             pixels.push(resolve_pixel(
