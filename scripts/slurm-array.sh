@@ -13,7 +13,14 @@
 # Environment:
 #   PACKET_RENDER  the binary (default: packet-render on PATH, else target/release/)
 #   SBATCH_EXTRA   more sbatch options for both jobs (e.g. "--partition=batch")
-# Prints the two job ids; the merge job's log is OUT.parts/merge.log.
+#   MERGE=0        submit the array only (an early round of samples, see below)
+# Prints the job ids; the merge job's log is OUT.parts/merge.log.
+#
+# Rounds of samples: with --sample-range a..b among the render options, the parts are
+# named tile-I.sa-b.partial, and the merge takes every part in OUT.parts, so a later
+# array can add samples to the frame:
+#   MERGE=0 scripts/slurm-array.sh scene.toml frame.png 8 --spp 64 --sample-range 0..16
+#   scripts/slurm-array.sh scene.toml frame.png 8 --spp 64 --sample-range 16..64
 set -euo pipefail
 
 if [ -z "${SLURM_JOB_ID:-}" ]; then
@@ -29,13 +36,24 @@ if [ -z "${SLURM_JOB_ID:-}" ]; then
     bin=$(realpath "$bin")
     work="$out.parts"
     mkdir -p "$work"
+    tag=""
+    prev=""
+    for a in "$@"; do
+        [ "$prev" = --sample-range ] && tag=".s${a/../-}"
+        case $a in --sample-range=*) r=${a#*=} && tag=".s${r/../-}" ;; esac
+        prev=$a
+    done
     # shellcheck disable=SC2086 # SBATCH_EXTRA is a list of options
     array=$(sbatch --parsable ${SBATCH_EXTRA:-} --array="0-$((n - 1))" --job-name=pr-tile \
-        --output="$work/tile-%a.log" "$0" tile "$bin" "$scene" "$work" "$n" "$@")
+        --output="$work/tile-%a$tag.log" "$0" tile "$bin" "$scene" "$work" "$n" "$tag" "$@")
     array=${array%%;*} # "id;cluster" on multi-cluster setups
+    if [ "${MERGE:-1}" = 0 ]; then
+        echo "array job $array (${n} tiles), no merge -> $work"
+        exit 0
+    fi
     # shellcheck disable=SC2086
     merge=$(sbatch --parsable ${SBATCH_EXTRA:-} --dependency="afterok:$array" --kill-on-invalid-dep=yes \
-        --job-name=pr-merge --output="$work/merge.log" "$0" merge "$bin" "$out" "$work" "$n")
+        --job-name=pr-merge --output="$work/merge.log" "$0" merge "$bin" "$out" "$work")
     echo "array job $array (${n} tiles), merge job ${merge%%;*} -> $out"
     exit 0
 fi
@@ -45,17 +63,16 @@ mode=$1
 shift
 case $mode in
 tile)
-    bin=$1 scene=$2 work=$3 n=$4
-    shift 4
+    bin=$1 scene=$2 work=$3 n=$4 tag=$5
+    shift 5
     i=$SLURM_ARRAY_TASK_ID
-    exec "$bin" render "$scene" -o "$work/tile-$i.partial" --tile "$i/$n" \
+    exec "$bin" render "$scene" -o "$work/tile-$i$tag.partial" --tile "$i/$n" \
         --threads "${SLURM_CPUS_PER_TASK:-1}" "$@"
     ;;
 merge)
-    bin=$1 out=$2 work=$3 n=$4
-    parts=()
-    for ((i = 0; i < n; i++)); do parts+=("$work/tile-$i.partial"); done
-    exec "$bin" merge "${parts[@]}" -o "$out"
+    bin=$1 out=$2 work=$3
+    # Every part of every round; merge refuses overlaps and gaps, naming the files.
+    exec "$bin" merge "$work"/tile-*.partial -o "$out"
     ;;
 *)
     echo "unknown mode '$mode'" >&2

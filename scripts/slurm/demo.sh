@@ -35,3 +35,13 @@ say packet-render merge frame.png.parts/tile-{0..3}.partial -o merged.partial
 say cmp merged.partial single.partial; cmp merged.partial single.partial && echo identical
 say packet-render merge frame.png.parts/tile-{0,1,3}.partial -o bad.png
 "$PACKET_RENDER" merge frame.png.parts/tile-{0,1,3}.partial -o bad.png; echo "exit status $?"
+# Two rounds of samples: a first array without a merge, a second that merges both.
+wait_queue() { while [ -n "$(squeue -h)" ]; do sleep 1; done; }
+say MERGE=0 scripts/slurm-array.sh scenes/dof_area.toml rounds.png 3 "${opts[@]}" --sample-range 0..6
+MERGE=0 "$repo/scripts/slurm-array.sh" "$scene" "$work/rounds.png" 3 "${opts[@]}" --sample-range 0..6
+wait_queue
+say scripts/slurm-array.sh scenes/dof_area.toml rounds.png 3 "${opts[@]}" --sample-range 6..16
+"$repo/scripts/slurm-array.sh" "$scene" "$work/rounds.png" 3 "${opts[@]}" --sample-range 6..16
+wait_queue
+say ls rounds.png.parts; (cd "$work/rounds.png.parts" && ls -- *.partial)
+say cmp rounds.png single.png; cmp rounds.png single.png && echo identical
