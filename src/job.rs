@@ -26,6 +26,8 @@ pub struct Overrides {
     pub time_samples: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub filter: Option<FilterKind>,
+    /// Shadows through glass on or off (`integrator::shadow`).
+    pub transmitted_shadows: Option<bool>,
 }
 
 /// One render from a scene file to an image file.
@@ -171,6 +173,7 @@ impl RenderJob {
         o.samples.time = ov.time_samples.unwrap_or(o.samples.time);
         o.sampler = ov.sampler.unwrap_or(o.sampler);
         o.filter = ov.filter.unwrap_or(o.filter);
+        o.transmitted_shadows = ov.transmitted_shadows.unwrap_or(o.transmitted_shadows);
         o.seed = self.seed;
         o.validate()?;
         Ok(o)

@@ -3,6 +3,7 @@
 //! in batches from queues.
 
 pub mod sampling;
+pub mod shadow;
 pub mod wavefront;
 pub mod whitted;
 
@@ -88,6 +89,9 @@ pub struct RenderOptions {
     pub sampler: SamplerKind,
     /// Pixel reconstruction filter.
     pub filter: FilterKind,
+    /// Shadow rays through glass attenuated by its transmission instead of blocked
+    /// ([`shadow`]).
+    pub transmitted_shadows: bool,
     /// Called as tiles finish; `None` for silence.
     pub progress: Option<ProgressFn>,
 }
@@ -106,6 +110,7 @@ impl std::fmt::Debug for RenderOptions {
             .field("samples", &self.samples)
             .field("sampler", &self.sampler)
             .field("filter", &self.filter)
+            .field("transmitted_shadows", &self.transmitted_shadows)
             .field(
                 "progress",
                 &self.progress.as_ref().map(|_| "Fn(done, total)"),
@@ -130,6 +135,7 @@ impl PartialEq for RenderOptions {
             && self.samples == o.samples
             && self.sampler == o.sampler
             && self.filter == o.filter
+            && self.transmitted_shadows == o.transmitted_shadows
             && same_progress
     }
 }
@@ -147,6 +153,7 @@ impl RenderOptions {
             samples: s.samples,
             sampler: SamplerKind::default(),
             filter: FilterKind::default(),
+            transmitted_shadows: s.transmitted_shadows,
             progress: None,
         }
     }
