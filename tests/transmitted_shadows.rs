@@ -209,3 +209,34 @@ fn toml_key_sets_it_and_the_default_is_on() {
         "{bad}"
     );
 }
+
+/// The CLI flag overrides the scene: the Whitted room's glass sphere shadows the floor,
+/// so by default blocked shadow rays are traced again; `--transmitted-shadows false`
+/// traces none again and the image changes.
+#[test]
+fn cli_flag_switches_it() {
+    let dir = std::env::temp_dir().join(format!("packet-render-tshadow-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitted.toml");
+    let run = |tag: &str, extra: &[&str]| {
+        let (png, json) = (dir.join(format!("{tag}.png")), dir.join(format!("{tag}.json")));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_packet-render"))
+            .args(["render", scene.to_str().unwrap(), "-o", png.to_str().unwrap()])
+            .args(["--width", "40", "--height", "30", "--quiet", "--stats-json"])
+            .arg(&json)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let again = stats["rays"]["transmitted_shadow"].as_u64().unwrap();
+        (std::fs::read(&png).unwrap(), again)
+    };
+    let (on, on_again) = run("on", &[]);
+    let (off, off_again) = run("off", &["--transmitted-shadows", "false"]);
+    assert!(on_again > 0, "no shadow ray met the glass");
+    assert_eq!(off_again, 0);
+    assert_ne!(on, off, "the glass shadow should differ");
+    let _ = std::fs::remove_dir_all(&dir);
+}
