@@ -230,9 +230,10 @@ impl RenderReport {
             self.filter
         );
         s += &format!(
-            "rays     camera {}, shadow {}, reflection {}, refraction {}, glossy {}, translucency {}; total {}\n",
+            "rays     camera {}, shadow {} ({} traced again through glass), reflection {}, refraction {}, glossy {}, translucency {}; total {}\n",
             r.camera,
             r.shadow,
+            r.transmitted_shadow,
             r.reflection,
             r.refraction,
             r.glossy,
