@@ -219,9 +219,17 @@ fn cli_flag_switches_it() {
     std::fs::create_dir_all(&dir).unwrap();
     let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitted.toml");
     let run = |tag: &str, extra: &[&str]| {
-        let (png, json) = (dir.join(format!("{tag}.png")), dir.join(format!("{tag}.json")));
+        let (png, json) = (
+            dir.join(format!("{tag}.png")),
+            dir.join(format!("{tag}.json")),
+        );
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_packet-render"))
-            .args(["render", scene.to_str().unwrap(), "-o", png.to_str().unwrap()])
+            .args([
+                "render",
+                scene.to_str().unwrap(),
+                "-o",
+                png.to_str().unwrap(),
+            ])
             .args(["--width", "40", "--height", "30", "--quiet", "--stats-json"])
             .arg(&json)
             .args(extra)

@@ -181,7 +181,9 @@ impl<'f, 'a> FilterSink<'f, 'a> {
     /// when the traversal is finished.
     #[inline]
     pub fn offer(&mut self, id: u32, h: PrimHit, front_face: bool) -> bool {
-        if !(h.t < self.tmax) || (self.opts.cull_back_faces && !front_face) {
+        // `h.t` is never NaN: the primitive tests return only distances inside the
+        // interval.
+        if h.t >= self.tmax || (self.opts.cull_back_faces && !front_face) {
             return false;
         }
         let hit = Hit {

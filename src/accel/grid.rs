@@ -270,11 +270,11 @@ impl<P: Primitives> CountedTraversal for Grid<P> {
     fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-        sink: &mut S,
-    ) -> TraversalCounts {
+        mut sink: S,
+    ) -> (S, TraversalCounts) {
         let mut counts = TraversalCounts::default();
-        self.traverse::<COUNT, S>(q, &mut counts, sink);
-        counts
+        self.traverse::<COUNT, S>(q, &mut counts, &mut sink);
+        (sink, counts)
     }
 
     fn build_info(&self) -> &AccelInfo {

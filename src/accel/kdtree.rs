@@ -257,10 +257,14 @@ impl<P: Primitives> KdTree<P> {
         self.refs.len()
     }
 
-    fn query<const COUNT: bool, S: LeafSink>(&self, q: &RayQuery, sink: &mut S) -> TraversalCounts {
+    fn query<const COUNT: bool, S: LeafSink>(
+        &self,
+        q: &RayQuery,
+        mut sink: S,
+    ) -> (S, TraversalCounts) {
         let mut counts = TraversalCounts::default();
         let Some((mut tn, mut tf)) = clip(&self.bounds, q) else {
-            return counts;
+            return (sink, counts);
         };
         let mut stack = [(0u32, 0.0f32, 0.0f32); STACK_SIZE];
         let mut sp = 0usize;
@@ -301,16 +305,16 @@ impl<P: Primitives> KdTree<P> {
             for &id in &self.refs[first..first + n.upper() as usize] {
                 counts.prim::<COUNT>();
                 if sink.test(&self.prims, id, q) {
-                    return counts;
+                    return (sink, counts);
                 }
             }
             // A hit inside this leaf's interval is the closest: later leaves lie beyond.
             if sink.tmax() <= tf {
-                return counts;
+                return (sink, counts);
             }
             loop {
                 if sp == 0 {
-                    return counts;
+                    return (sink, counts);
                 }
                 sp -= 1;
                 let (next, a, b) = stack[sp];
@@ -328,8 +332,8 @@ impl<P: Primitives> CountedTraversal for KdTree<P> {
     fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-        sink: &mut S,
-    ) -> TraversalCounts {
+        sink: S,
+    ) -> (S, TraversalCounts) {
         self.query::<COUNT, S>(q, sink)
     }
 

@@ -206,6 +206,9 @@ pub struct SceneHit {
     pub v: f32,
 }
 
+/// One primitive set of a scene and how its hits are named.
+type PrimSet<'a> = (Option<&'a dyn Accel>, fn(u32) -> PrimRef);
+
 /// A candidate hit of a scene-level filtered query ([`SceneAccel::filtered_hit`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneCandidate {
@@ -286,7 +289,7 @@ impl SceneAccel {
         filter: &mut dyn FnMut(&SceneCandidate) -> bool,
     ) -> Option<SceneHit> {
         let moving = self.moving.as_ref();
-        let sets: [(Option<&dyn Accel>, fn(u32) -> PrimRef); 4] = [
+        let sets: [PrimSet; 4] = [
             (self.triangles.as_deref(), PrimRef::Triangle),
             (self.spheres.as_deref(), PrimRef::Sphere),
             (

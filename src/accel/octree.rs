@@ -134,8 +134,8 @@ impl<P: Primitives> Builder<'_, P> {
 }
 
 /// Mutable state of one ray's traversal.
-struct RayState<'s, S: LeafSink> {
-    sink: &'s mut S,
+struct RayState<S: LeafSink> {
+    sink: S,
     counts: TraversalCounts,
 }
 
@@ -199,7 +199,7 @@ impl<P: Primitives> Octree<P> {
         self.refs.len()
     }
 
-    fn query<const COUNT: bool, S: LeafSink>(&self, q: &RayQuery, sink: &mut S) -> TraversalCounts {
+    fn query<const COUNT: bool, S: LeafSink>(&self, q: &RayQuery, sink: S) -> (S, TraversalCounts) {
         let mut s = RayState {
             sink,
             counts: TraversalCounts::default(),
@@ -207,7 +207,7 @@ impl<P: Primitives> Octree<P> {
         if let Some((t0, t1)) = clip(&self.bounds, q) {
             self.visit::<COUNT, S>(0, self.bounds.min, self.bounds.max, t0, t1, q, &mut s);
         }
-        s.counts
+        (s.sink, s.counts)
     }
 
     /// Visits the subtree of `node` (box `lo..hi`) over the ray interval `[t0, t1]`.
@@ -286,8 +286,8 @@ impl<P: Primitives> CountedTraversal for Octree<P> {
     fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-        sink: &mut S,
-    ) -> TraversalCounts {
+        sink: S,
+    ) -> (S, TraversalCounts) {
         self.query::<COUNT, S>(q, sink)
     }
 

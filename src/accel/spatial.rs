@@ -241,14 +241,16 @@ impl LeafSink for FilterSink<'_, '_> {
 
 /// What a spatial subdivision implements: one traversal, generic over what it does
 /// with the primitives it reaches ([`LeafSink`]), with a compile-time switch for
-/// counting (`COUNT`). The `Accel` entry points and the counting twin are written
-/// once, below, for all three structures.
+/// counting (`COUNT`). The sink is passed by value and handed back, so that the plain
+/// query's `tmax` and hit stay traversal locals as they were before sinks. The
+/// `Accel` entry points and the counting twin are written once, below, for all three
+/// structures.
 pub(crate) trait CountedTraversal: Send + Sync {
     fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-        sink: &mut S,
-    ) -> TraversalCounts;
+        sink: S,
+    ) -> (S, TraversalCounts);
 
     fn build_info(&self) -> &AccelInfo;
 
@@ -256,8 +258,8 @@ pub(crate) trait CountedTraversal: Send + Sync {
     fn closest_hit_counted(&self, ray: &Ray) -> (Option<Hit>, TraversalCounts) {
         match RayQuery::new(ray) {
             Some(q) => {
-                let mut sink = NearestSink::<false>::new(&q);
-                let counts = self.traverse_with::<true, _>(&q, &mut sink);
+                let (sink, counts) =
+                    self.traverse_with::<true, _>(&q, NearestSink::<false>::new(&q));
                 (sink.best, counts)
             }
             None => (None, TraversalCounts::default()),
@@ -268,15 +270,14 @@ pub(crate) trait CountedTraversal: Send + Sync {
 impl<T: CountedTraversal> Accel for T {
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
         let q = RayQuery::new(ray)?;
-        let mut sink = NearestSink::<false>::new(&q);
-        self.traverse_with::<false, _>(&q, &mut sink);
-        sink.best
+        self.traverse_with::<false, _>(&q, NearestSink::<false>::new(&q))
+            .0
+            .best
     }
 
     fn any_hit(&self, ray: &Ray) -> bool {
         RayQuery::new(ray).is_some_and(|q| {
-            let mut sink = NearestSink::<true>::new(&q);
-            self.traverse_with::<false, _>(&q, &mut sink);
+            let (sink, _) = self.traverse_with::<false, _>(&q, NearestSink::<true>::new(&q));
             sink.best.is_some()
         })
     }
@@ -289,9 +290,8 @@ impl<T: CountedTraversal> Accel for T {
         filter: &mut HitFilter<'_>,
     ) -> Option<Hit> {
         let q = RayQuery::new(ray)?;
-        let mut sink = FilterSink::new(&q, opts, filter).deduplicating();
-        self.traverse_with::<false, _>(&q, &mut sink);
-        sink.best
+        let sink = FilterSink::new(&q, opts, filter).deduplicating();
+        self.traverse_with::<false, _>(&q, sink).0.best
     }
 
     fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
