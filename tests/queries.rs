@@ -312,3 +312,61 @@ fn invalid_rays_never_reach_the_filter() {
         }
     }
 }
+
+/// `SceneAccel::filtered_hit` walks every primitive kind (triangles, spheres, moving
+/// spheres) with each structure: all candidates, the nearest accepted one across kinds,
+/// and any mode stopping at the first accepted.
+#[test]
+fn scene_level_filtered_query_covers_every_primitive_kind() {
+    use packet_render::accel::{PrimRef, SceneAccel, SceneCandidate};
+    use packet_render::scene::{Material, SceneBuilder};
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(Material::default());
+    // Counter-clockwise seen from -z: the ray along +z meets its front face.
+    b.add_triangle(
+        Vec3::new(-3.0, -3.0, 0.0),
+        Vec3::new(0.0, 3.0, 0.0),
+        Vec3::new(3.0, -3.0, 0.0),
+        m,
+    );
+    b.add_sphere(Vec3::new(0.1, 0.1, 2.0), 0.5, m);
+    b.add_moving_sphere(Vec3::new(0.1, 0.1, 5.0), 0.5, Vec3::ZERO, m);
+    let scene = b.finish().unwrap();
+    let ray = Ray::new(Vec3::new(0.1, 0.1, -5.0), Vec3::Z);
+    let want = [
+        (PrimRef::Triangle(0), 5.0, true),
+        (PrimRef::Sphere(0), 6.5, true),
+        (PrimRef::Sphere(0), 7.5, false),
+        (PrimRef::MovingSphere(0), 9.5, true),
+        (PrimRef::MovingSphere(0), 10.5, false),
+    ];
+    for &kind in AccelKind::ALL {
+        let accel = SceneAccel::build(&scene, kind);
+        let mut seen: Vec<SceneCandidate> = Vec::new();
+        let none = accel.filtered_hit(&ray, QueryOptions::default(), &mut |c| {
+            seen.push(*c);
+            false
+        });
+        assert_eq!(none, None);
+        seen.sort_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
+        assert_eq!(seen.len(), want.len(), "{kind}: {seen:?}");
+        for (c, &(prim, t, front)) in seen.iter().zip(&want) {
+            // The spheres' roots are exact here (7.5, 48.75 / 7.5, ...); the triangle's t
+            // carries the watertight test's few ulps of rounding.
+            assert!(
+                c.hit.prim == prim && c.front_face == front && (c.hit.t - t).abs() < 1e-5,
+                "{kind}: {c:?} against {prim:?} {t} {front}"
+            );
+        }
+        let not_triangles = |c: &SceneCandidate| !matches!(c.hit.prim, PrimRef::Triangle(_));
+        let h = accel.filtered_hit(&ray, QueryOptions::default(), &mut |c| not_triangles(c));
+        assert_eq!(h.map(|h| (h.prim, h.t)), Some((PrimRef::Sphere(0), 6.5)));
+        let any = QueryOptions {
+            any: true,
+            ..QueryOptions::default()
+        };
+        let moving = |c: &SceneCandidate| matches!(c.hit.prim, PrimRef::MovingSphere(_));
+        let h = accel.filtered_hit(&ray, any, &mut |c| moving(c));
+        assert_eq!(h.map(|h| h.prim), Some(PrimRef::MovingSphere(0)), "{kind}");
+    }
+}
