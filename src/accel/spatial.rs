@@ -178,8 +178,9 @@ pub fn sphere_overlaps_box(center: Vec3, radius: f32, b: &Aabb) -> bool {
 
 /// What a spatial traversal does with the primitives of a cell, voxel or leaf: the
 /// plain closest/any hit ([`NearestSink`]) or a filtered query ([`FilterSink`]). The
-/// traversals are generic over it, so the plain queries compile to the code they had
-/// before filters existed.
+/// traversals are generic over it (monomorphised, the sink a by-value local holding
+/// the `tmax` and hit the traversals kept before), so the plain queries do the same
+/// work as before filters existed.
 pub(crate) trait LeafSink {
     /// The current end of the ray's interval (the nearest hit kept so far).
     fn tmax(&self) -> f32;
