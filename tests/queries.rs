@@ -342,13 +342,7 @@ fn scene_level_filtered_query_covers_every_primitive_kind() {
     ];
     for &kind in AccelKind::ALL {
         let accel = SceneAccel::build(&scene, kind);
-        let mut seen: Vec<SceneCandidate> = Vec::new();
-        let none = accel.filtered_hit(&ray, QueryOptions::default(), &mut |c| {
-            seen.push(*c);
-            false
-        });
-        assert_eq!(none, None);
-        seen.sort_by(|a, b| a.hit.t.total_cmp(&b.hit.t));
+        let seen = accel.all_hits(&ray, false);
         assert_eq!(seen.len(), want.len(), "{kind}: {seen:?}");
         for (c, &(prim, t, front)) in seen.iter().zip(&want) {
             // The spheres' roots are exact here (7.5, 48.75 / 7.5, ...); the triangle's t
@@ -358,6 +352,21 @@ fn scene_level_filtered_query_covers_every_primitive_kind() {
                 "{kind}: {c:?} against {prim:?} {t} {front}"
             );
         }
+        // Culled: the spheres' exits go.
+        let culled: Vec<_> = accel
+            .all_hits(&ray, true)
+            .iter()
+            .map(|c| c.hit.prim)
+            .collect();
+        assert_eq!(
+            culled,
+            [
+                PrimRef::Triangle(0),
+                PrimRef::Sphere(0),
+                PrimRef::MovingSphere(0)
+            ],
+            "{kind}"
+        );
         let not_triangles = |c: &SceneCandidate| !matches!(c.hit.prim, PrimRef::Triangle(_));
         let h = accel.filtered_hit(&ray, QueryOptions::default(), &mut |c| not_triangles(c));
         assert_eq!(h.map(|h| (h.prim, h.t)), Some((PrimRef::Sphere(0), 6.5)));

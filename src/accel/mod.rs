@@ -330,6 +330,35 @@ impl SceneAccel {
         best
     }
 
+    /// Every hit along the ray in the whole scene (back faces dropped with
+    /// `cull_back_faces`), sorted by `t`, then primitive kind (triangles, spheres,
+    /// moving triangles, moving spheres) and index, entries before exits.
+    pub fn all_hits(&self, ray: &Ray, cull_back_faces: bool) -> Vec<SceneCandidate> {
+        let mut hits = Vec::new();
+        let opts = QueryOptions {
+            cull_back_faces,
+            any: false,
+        };
+        self.filtered_hit(ray, opts, &mut |c| {
+            hits.push(*c);
+            false
+        });
+        let key = |p: PrimRef| match p {
+            PrimRef::Triangle(i) => (0, i),
+            PrimRef::Sphere(i) => (1, i),
+            PrimRef::MovingTriangle(i) => (2, i),
+            PrimRef::MovingSphere(i) => (3, i),
+        };
+        hits.sort_by(|a, b| {
+            a.hit
+                .t
+                .total_cmp(&b.hit.t)
+                .then(key(a.hit.prim).cmp(&key(b.hit.prim)))
+                .then(b.front_face.cmp(&a.front_face))
+        });
+        hits
+    }
+
     pub fn any_hit(&self, ray: &Ray) -> bool {
         self.triangles.as_ref().is_some_and(|a| a.any_hit(ray))
             || self.spheres.as_ref().is_some_and(|a| a.any_hit(ray))
