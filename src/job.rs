@@ -30,6 +30,8 @@ pub struct Overrides {
     pub time_samples: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub filter: Option<FilterKind>,
+    /// Shadows through glass on or off (`integrator::shadow`).
+    pub transmitted_shadows: Option<bool>,
 }
 
 /// One render from a scene file to an image file.
@@ -203,6 +205,7 @@ impl RenderJob {
         o.samples.time = ov.time_samples.unwrap_or(o.samples.time);
         o.sampler = ov.sampler.unwrap_or(o.sampler);
         o.filter = ov.filter.unwrap_or(o.filter);
+        o.transmitted_shadows = ov.transmitted_shadows.unwrap_or(o.transmitted_shadows);
         o.seed = self.seed;
         o.crop = match (self.part.crop, self.part.tile) {
             (Some(_), Some(_)) => {
@@ -222,7 +225,7 @@ impl RenderJob {
     /// equally near hits differently.
     fn options_text(&self, o: &RenderOptions) -> String {
         format!(
-            "{}x{}, spp {}, seed {}, max depth {}, min contribution {:e}, samples {:?}, sampler {}, filter {}, integrator {}, accel {:?}",
+            "{}x{}, spp {}, seed {}, max depth {}, min contribution {:e}, samples {:?}, sampler {}, filter {}, transmitted shadows {}, integrator {}, accel {:?}",
             o.width,
             o.height,
             o.spp,
@@ -232,6 +235,7 @@ impl RenderJob {
             o.samples,
             o.sampler,
             o.filter,
+            o.transmitted_shadows,
             self.integrator,
             self.accel
         )
@@ -317,9 +321,10 @@ impl RenderReport {
             self.filter
         );
         s += &format!(
-            "rays     camera {}, shadow {}, reflection {}, refraction {}, glossy {}, translucency {}; total {}\n",
+            "rays     camera {}, shadow {} ({} traced again through glass), reflection {}, refraction {}, glossy {}, translucency {}; total {}\n",
             r.camera,
             r.shadow,
+            r.transmitted_shadow,
             r.reflection,
             r.refraction,
             r.glossy,

@@ -210,6 +210,10 @@ struct RenderArgs {
     /// Maximum recursion depth for reflection and refraction (default: the scene's).
     #[arg(long)]
     max_depth: Option<u32>,
+    /// Shadow rays through glass attenuated by its transmission (`true`, the default
+    /// unless the scene says otherwise) or blocked (`false`).
+    #[arg(long)]
+    transmitted_shadows: Option<bool>,
     #[command(flatten)]
     sampling: SamplingArgs,
     /// Worker threads; 0 = all cores.
@@ -313,6 +317,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             time_samples: args.sampling.time_samples,
             sampler: args.sampling.sampler,
             filter: args.sampling.filter,
+            transmitted_shadows: args.transmitted_shadows,
         },
         accel: args.accel,
         integrator: args.integrator,

@@ -15,6 +15,9 @@ pub struct RayCounts {
     pub glossy: u64,
     /// Refracted rays sampled in a translucency lobe.
     pub translucency: u64,
+    /// Shadow rays the plain occlusion query found blocked and that were traced again
+    /// through transmissive surfaces (transmitted shadows, `integrator::shadow`).
+    pub transmitted_shadow: u64,
 }
 
 impl RayCounts {
@@ -25,6 +28,7 @@ impl RayCounts {
             + self.refraction
             + self.glossy
             + self.translucency
+            + self.transmitted_shadow
     }
 }
 
@@ -61,6 +65,7 @@ impl AddAssign for RayCounts {
         self.refraction += o.refraction;
         self.glossy += o.glossy;
         self.translucency += o.translucency;
+        self.transmitted_shadow += o.transmitted_shadow;
     }
 }
 

@@ -1,3 +1,4 @@
+use super::filter::{FilterSink, HitFilter, QueryOptions};
 use super::{Accel, AccelInfo, Primitives, TraversalCounts};
 use crate::geometry::{Hit, Ray, RayQuery};
 
@@ -36,6 +37,22 @@ impl<P: Primitives> Accel for BruteForce<P> {
             return false;
         };
         (0..self.prims.count()).any(|i| self.prims.intersect(i, &q, q.tmax).is_some())
+    }
+
+    fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut HitFilter<'_>,
+    ) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        let mut sink = FilterSink::new(&q, opts, filter);
+        for i in 0..self.prims.count() {
+            if sink.test(&self.prims, i, i as u32, &q) {
+                break;
+            }
+        }
+        sink.best
     }
 
     fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {

@@ -1,3 +1,4 @@
+use super::filter::{FilterSink, HitFilter, QueryOptions};
 use super::{Accel, AccelInfo, Primitives, TraversalCounts};
 use crate::geometry::{Aabb, Hit, Ray, RayQuery};
 use glam::{BVec3A, Vec3, Vec3A};
@@ -707,6 +708,61 @@ impl<P: Primitives> Bvh2<P> {
         }
     }
 
+    /// The filtered query ([`super::filter`]): the closest-hit traversal, nearer child
+    /// first, with the interval ended by the nearest accepted candidate only. Each
+    /// primitive is in one leaf, so no deduplication is needed.
+    fn filtered_query(&self, q: &RayQuery, sink: &mut FilterSink) {
+        if self.node_entry(0, q, sink.tmax).is_none() {
+            return;
+        }
+        let mut stack = [0u32; STACK_SIZE];
+        let mut sp = 0;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            if n.is_leaf() {
+                for k in n.first as usize..(n.first + n.count) as usize {
+                    if sink.test(&self.prims, k, self.prim_ids[k], q) {
+                        return;
+                    }
+                }
+            } else {
+                let l = n.first as usize;
+                let hl = self.node_entry(l, q, sink.tmax);
+                let hr = self.node_entry(l + 1, q, sink.tmax);
+                match (hl, hr) {
+                    (Some(a), Some(b)) => {
+                        let (near, far) = if a <= b { (l, l + 1) } else { (l + 1, l) };
+                        stack[sp] = far as u32;
+                        sp += 1;
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = l;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = l + 1;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let next = stack[sp] as usize;
+                if self.node_entry(next, q, sink.tmax).is_some() {
+                    node = next;
+                    break;
+                }
+            }
+        }
+    }
+
     /// Any hit in `(tmin, tmax)`: stops at the first one found.
     pub fn any_hit_query(&self, q: &RayQuery) -> bool {
         let tmax = q.tmax;
@@ -754,6 +810,18 @@ impl<P: Primitives> Accel for Bvh2<P> {
 
     fn any_hit(&self, ray: &Ray) -> bool {
         RayQuery::new(ray).is_some_and(|q| self.any_hit_query(&q))
+    }
+
+    fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut HitFilter<'_>,
+    ) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        let mut sink = FilterSink::new(&q, opts, filter);
+        self.filtered_query(&q, &mut sink);
+        sink.best
     }
 
     fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {

@@ -20,6 +20,7 @@
 //! hybrid traversal does.
 
 use super::bvh2::{BuildNode, build_tree};
+use super::filter::{FilterSink, HitFilter, QueryOptions, triangle_candidates};
 use super::{Accel, AccelInfo, Bvh2BuildOptions, Primitives, Triangles};
 use crate::geometry::{Aabb, Hit, LaneRays, ROBUST_FAR_SCALE, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::{
@@ -637,6 +638,64 @@ where
                 leaf_range(r).any(|k| prims.intersect(k, q, q.tmax).is_some())
             }
         }
+    }
+
+    /// The filtered query ([`super::filter`]): the single-ray traversal of
+    /// `closest_from`, nearer children first, with the interval ended by the nearest
+    /// accepted candidate only. Triangle groups are tested lane by lane with the scalar
+    /// watertight test (the SIMD kernel is its bit-identical twin but reports only the
+    /// nearest lane). Each primitive is in one leaf, so no deduplication is needed.
+    fn filtered_from(&self, q: &RayQuery, sink: &mut FilterSink) {
+        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+        let mut stack = Stack::new();
+        let mut cur = self.root;
+        loop {
+            if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let (enter, mask) = ray.test(node, sink.tmax);
+                if mask != 0 {
+                    cur = order_children(node, enter, mask, &mut stack);
+                    continue;
+                }
+            } else if self.leaf_filtered(q, cur, sink) {
+                return;
+            }
+            loop {
+                let Some((r, d)) = stack.pop() else {
+                    return;
+                };
+                if d <= sink.tmax * ROBUST_FAR_SCALE {
+                    cur = r;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Offers the candidates of leaf `r`; true when the traversal is finished.
+    fn leaf_filtered(&self, q: &RayQuery, r: u32, sink: &mut FilterSink) -> bool {
+        match &self.leaves {
+            Leaves::Triangles(groups) => {
+                for g in &groups[leaf_range(r)] {
+                    for lane in (0..4).filter(|&l| g.ids[l] != u32::MAX) {
+                        let corners = g.corners(lane);
+                        if sink.test_with(g.ids[lane], |tmax, f| {
+                            triangle_candidates(q, corners, tmax, f)
+                        }) {
+                            return true;
+                        }
+                    }
+                }
+            }
+            Leaves::Scalar { prims, ids } => {
+                for k in leaf_range(r) {
+                    if sink.test(prims, k, ids[k], q) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
     }
 
     /// Closest hit of one ray (the single-ray SIMD kernel).
@@ -1331,6 +1390,18 @@ where
 
     fn any_hit(&self, ray: &Ray) -> bool {
         self.any_single(ray)
+    }
+
+    fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut HitFilter<'_>,
+    ) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        let mut sink = FilterSink::new(&q, opts, filter);
+        self.filtered_from(&q, &mut sink);
+        sink.best
     }
 
     fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {

@@ -2,10 +2,11 @@
 //! Algorithm for Ray Tracing", Eurographics 1987) and per-ray mailboxing.
 
 use super::spatial::{
-    CountedTraversal, Mailbox, TraversalCounts, clip, conservative_pad, grown, moves_along,
+    CountedTraversal, LeafSink, Mailbox, TraversalCounts, clip, conservative_pad, grown,
+    moves_along,
 };
 use super::{AccelInfo, Primitives};
-use crate::geometry::{Aabb, Hit, RayQuery};
+use crate::geometry::{Aabb, RayQuery};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -185,14 +186,17 @@ impl<P: Primitives> Grid<P> {
         self.refs.len()
     }
 
-    /// The DDA walk shared by closest hit (`ANY = false`) and any hit (`ANY = true`).
+    /// The DDA walk shared by closest hit, any hit and filtered queries (`sink`).
     #[inline(always)]
-    fn traverse<const COUNT: bool, const ANY: bool>(
+    fn traverse<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
         counts: &mut TraversalCounts,
-    ) -> Option<Hit> {
-        let (t0, _t1) = clip(&self.bounds, q)?;
+        sink: &mut S,
+    ) {
+        let Some((t0, _t1)) = clip(&self.bounds, q) else {
+            return;
+        };
         let entry = q.origin + q.dir * t0;
         let mut cell = cell_of(entry, self.bounds.min, self.inv_cell_size, self.res);
         let mut step = [0i32; 3];
@@ -204,8 +208,6 @@ impl<P: Primitives> Grid<P> {
             }
         }
         let mut mailbox = Mailbox::new();
-        let mut tmax = q.tmax;
-        let mut best: Option<Hit> = None;
         loop {
             counts.node::<COUNT>();
             let c = ((cell[2] * self.res[1] + cell[1]) * self.res[0] + cell[0]) as usize;
@@ -215,17 +217,8 @@ impl<P: Primitives> Grid<P> {
                     continue;
                 }
                 counts.prim::<COUNT>();
-                if let Some(h) = self.prims.intersect(id as usize, q, tmax) {
-                    best = Some(Hit {
-                        t: h.t,
-                        prim: id,
-                        u: h.u,
-                        v: h.v,
-                    });
-                    if ANY {
-                        return best;
-                    }
-                    tmax = h.t;
+                if sink.test(&self.prims, id, q) {
+                    return;
                 }
             }
             // Next cell across the nearest boundary. Stop when the closest hit so far (or
@@ -240,12 +233,12 @@ impl<P: Primitives> Grid<P> {
                 2
             };
             let exit = next_t[axis];
-            if tmax <= exit || step[axis] == 0 {
-                return best;
+            if sink.tmax() <= exit || step[axis] == 0 {
+                return;
             }
             cell[axis] += step[axis];
             if cell[axis] < 0 || cell[axis] >= self.res[axis] {
-                return best;
+                return;
             }
             next_t[axis] = self.boundary_t(q, axis, cell[axis], step[axis]);
         }
@@ -274,13 +267,14 @@ fn cell_of<R: Copy + Into<i64>>(p: Vec3, min: Vec3, inv: Vec3, res: [R; 3]) -> [
 }
 
 impl<P: Primitives> CountedTraversal for Grid<P> {
-    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+    fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-    ) -> (Option<Hit>, TraversalCounts) {
+        mut sink: S,
+    ) -> (S, TraversalCounts) {
         let mut counts = TraversalCounts::default();
-        let hit = self.traverse::<COUNT, ANY>(q, &mut counts);
-        (hit, counts)
+        self.traverse::<COUNT, S>(q, &mut counts, &mut sink);
+        (sink, counts)
     }
 
     fn build_info(&self) -> &AccelInfo {

@@ -11,10 +11,11 @@
 //! within the assignment margin of the plane go to both children.
 
 use super::spatial::{
-    CountedTraversal, TraversalCounts, boxes_overlap, clip, conservative_pad, grown, moves_along,
+    CountedTraversal, LeafSink, TraversalCounts, boxes_overlap, clip, conservative_pad, grown,
+    moves_along,
 };
 use super::{AccelInfo, Primitives};
-use crate::geometry::{Aabb, Hit, RayQuery};
+use crate::geometry::{Aabb, RayQuery};
 use std::time::Instant;
 
 /// Build parameters of a [`KdTree`].
@@ -256,16 +257,15 @@ impl<P: Primitives> KdTree<P> {
         self.refs.len()
     }
 
-    fn query<const COUNT: bool, const ANY: bool>(
+    fn query<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-    ) -> (Option<Hit>, TraversalCounts) {
+        mut sink: S,
+    ) -> (S, TraversalCounts) {
         let mut counts = TraversalCounts::default();
         let Some((mut tn, mut tf)) = clip(&self.bounds, q) else {
-            return (None, counts);
+            return (sink, counts);
         };
-        let mut best: Option<Hit> = None;
-        let mut tmax = q.tmax;
         let mut stack = [(0u32, 0.0f32, 0.0f32); STACK_SIZE];
         let mut sp = 0usize;
         let mut node = 0usize;
@@ -304,30 +304,21 @@ impl<P: Primitives> KdTree<P> {
             let first = n.data.to_bits() as usize;
             for &id in &self.refs[first..first + n.upper() as usize] {
                 counts.prim::<COUNT>();
-                if let Some(h) = self.prims.intersect(id as usize, q, tmax) {
-                    best = Some(Hit {
-                        t: h.t,
-                        prim: id,
-                        u: h.u,
-                        v: h.v,
-                    });
-                    if ANY {
-                        return (best, counts);
-                    }
-                    tmax = h.t;
+                if sink.test(&self.prims, id, q) {
+                    return (sink, counts);
                 }
             }
             // A hit inside this leaf's interval is the closest: later leaves lie beyond.
-            if tmax <= tf {
-                return (best, counts);
+            if sink.tmax() <= tf {
+                return (sink, counts);
             }
             loop {
                 if sp == 0 {
-                    return (best, counts);
+                    return (sink, counts);
                 }
                 sp -= 1;
                 let (next, a, b) = stack[sp];
-                if a < tmax {
+                if a < sink.tmax() {
                     node = next as usize;
                     (tn, tf) = (a, b);
                     break;
@@ -338,11 +329,12 @@ impl<P: Primitives> KdTree<P> {
 }
 
 impl<P: Primitives> CountedTraversal for KdTree<P> {
-    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+    fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-    ) -> (Option<Hit>, TraversalCounts) {
-        self.query::<COUNT, ANY>(q)
+        sink: S,
+    ) -> (S, TraversalCounts) {
+        self.query::<COUNT, S>(q, sink)
     }
 
     fn build_info(&self) -> &AccelInfo {

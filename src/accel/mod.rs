@@ -8,6 +8,7 @@
 mod bruteforce;
 mod bvh2;
 mod bvhn;
+pub mod filter;
 mod grid;
 mod kdtree;
 mod moving;
@@ -18,6 +19,7 @@ pub mod spatial;
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvhn::{Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, Width};
+pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
 pub use kdtree::{KdNode, KdTree, KdTreeOptions};
 pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};
@@ -39,6 +41,19 @@ use std::str::FromStr;
 pub trait Accel: Send + Sync {
     fn closest_hit(&self, ray: &Ray) -> Option<Hit>;
     fn any_hit(&self, ray: &Ray) -> bool;
+
+    /// Filtered query (Embree's intersection filter): `filter` is offered each
+    /// candidate hit nearer than the nearest it accepted, each exactly once, and
+    /// returns whether to accept it; the result is the nearest accepted candidate, or
+    /// with `opts.any` the first. Back faces are dropped first with
+    /// `opts.cull_back_faces`. Single rays on every structure, separate from the
+    /// plain queries so that they pay nothing. Full semantics: [`filter`].
+    fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut HitFilter<'_>,
+    ) -> Option<Hit>;
 
     /// Closest hits for a batch of rays. Structures with packet kernels override this.
     fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
@@ -191,6 +206,17 @@ pub struct SceneHit {
     pub v: f32,
 }
 
+/// One primitive set of a scene and how its hits are named.
+type PrimSet<'a> = (Option<&'a dyn Accel>, fn(u32) -> PrimRef);
+
+/// A candidate hit of a scene-level filtered query ([`SceneAccel::filtered_hit`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneCandidate {
+    pub hit: SceneHit,
+    /// Whether the ray meets the front face ([`QueryOptions::cull_back_faces`]).
+    pub front_face: bool,
+}
+
 /// One structure per primitive kind present in the scene.
 pub struct SceneAccel {
     pub kind: AccelKind,
@@ -250,6 +276,87 @@ impl SceneAccel {
             best = closer(best, ray, |r| m.closest_sphere(r), PrimRef::MovingSphere);
         }
         best
+    }
+
+    /// The filtered query over the whole scene ([`Accel::filtered_hit`], same
+    /// semantics): each structure in turn (triangles, spheres, moving triangles, moving
+    /// spheres), each searching only in front of the nearest candidate accepted so
+    /// far; with `opts.any` the first accepted candidate ends the query.
+    pub fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut dyn FnMut(&SceneCandidate) -> bool,
+    ) -> Option<SceneHit> {
+        let moving = self.moving.as_ref();
+        let sets: [PrimSet; 4] = [
+            (self.triangles.as_deref(), PrimRef::Triangle),
+            (self.spheres.as_deref(), PrimRef::Sphere),
+            (
+                moving.and_then(|m| m.triangles.as_deref()),
+                PrimRef::MovingTriangle,
+            ),
+            (
+                moving.and_then(|m| m.spheres.as_deref()),
+                PrimRef::MovingSphere,
+            ),
+        ];
+        let mut best: Option<SceneHit> = None;
+        for (accel, prim) in sets {
+            let Some(accel) = accel else { continue };
+            let mut r = *ray;
+            if let Some(b) = &best {
+                r.tmax = b.t;
+            }
+            let scene_hit = |h: &Hit| SceneHit {
+                t: h.t,
+                prim: prim(h.prim),
+                u: h.u,
+                v: h.v,
+            };
+            let found = accel.filtered_hit(&r, opts, &mut |c| {
+                filter(&SceneCandidate {
+                    hit: scene_hit(&c.hit),
+                    front_face: c.front_face,
+                })
+            });
+            if let Some(h) = found {
+                best = Some(scene_hit(&h));
+                if opts.any {
+                    break;
+                }
+            }
+        }
+        best
+    }
+
+    /// Every hit along the ray in the whole scene (back faces dropped with
+    /// `cull_back_faces`), sorted by `t`, then primitive kind (triangles, spheres,
+    /// moving triangles, moving spheres) and index, entries before exits.
+    pub fn all_hits(&self, ray: &Ray, cull_back_faces: bool) -> Vec<SceneCandidate> {
+        let mut hits = Vec::new();
+        let opts = QueryOptions {
+            cull_back_faces,
+            any: false,
+        };
+        self.filtered_hit(ray, opts, &mut |c| {
+            hits.push(*c);
+            false
+        });
+        let key = |p: PrimRef| match p {
+            PrimRef::Triangle(i) => (0, i),
+            PrimRef::Sphere(i) => (1, i),
+            PrimRef::MovingTriangle(i) => (2, i),
+            PrimRef::MovingSphere(i) => (3, i),
+        };
+        hits.sort_by(|a, b| {
+            a.hit
+                .t
+                .total_cmp(&b.hit.t)
+                .then(key(a.hit.prim).cmp(&key(b.hit.prim)))
+                .then(b.front_face.cmp(&a.front_face))
+        });
+        hits
     }
 
     pub fn any_hit(&self, ray: &Ray) -> bool {

@@ -78,6 +78,11 @@ impl Primitives for MovingSpheres {
         intersect_sphere(q, c, self.radius[i], tmax).map(|t| PrimHit { t, u: 0.0, v: 0.0 })
     }
 
+    fn intersect_each(&self, i: usize, q: &RayQuery, tmax: f32, f: &mut dyn FnMut(PrimHit, bool)) {
+        let c = self.center[i] + q.time * self.velocity[i];
+        super::filter::sphere_candidates(q, c, self.radius[i], tmax, f);
+    }
+
     fn permute(&self, order: &[u32]) -> Self {
         let pick = |v: &Vec<Vec3>| order.iter().map(|&i| v[i as usize]).collect();
         MovingSpheres {
@@ -112,6 +117,12 @@ impl Primitives for MovingTriangles {
     fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit> {
         let d = q.time * self.velocity[i];
         intersect_triangle(q, self.v0[i] + d, self.v1[i] + d, self.v2[i] + d, tmax)
+    }
+
+    fn intersect_each(&self, i: usize, q: &RayQuery, tmax: f32, f: &mut dyn FnMut(PrimHit, bool)) {
+        let d = q.time * self.velocity[i];
+        let corners = [self.v0[i] + d, self.v1[i] + d, self.v2[i] + d];
+        super::filter::triangle_candidates(q, corners, tmax, f);
     }
 
     fn permute(&self, order: &[u32]) -> Self {

@@ -10,10 +10,11 @@
 //! triangles, would otherwise be copied into all eight children at every level).
 
 use super::spatial::{
-    CountedTraversal, TraversalCounts, boxes_overlap, clip, conservative_pad, grown, moves_along,
+    CountedTraversal, LeafSink, TraversalCounts, boxes_overlap, clip, conservative_pad, grown,
+    moves_along,
 };
 use super::{AccelInfo, Primitives};
-use crate::geometry::{Aabb, Hit, RayQuery};
+use crate::geometry::{Aabb, RayQuery};
 use glam::Vec3;
 use std::time::Instant;
 
@@ -133,9 +134,8 @@ impl<P: Primitives> Builder<'_, P> {
 }
 
 /// Mutable state of one ray's traversal.
-struct RayState {
-    tmax: f32,
-    best: Option<Hit>,
+struct RayState<S: LeafSink> {
+    sink: S,
     counts: TraversalCounts,
 }
 
@@ -199,26 +199,23 @@ impl<P: Primitives> Octree<P> {
         self.refs.len()
     }
 
-    fn query<const COUNT: bool, const ANY: bool>(
-        &self,
-        q: &RayQuery,
-    ) -> (Option<Hit>, TraversalCounts) {
+    fn query<const COUNT: bool, S: LeafSink>(&self, q: &RayQuery, sink: S) -> (S, TraversalCounts) {
         let mut s = RayState {
-            tmax: q.tmax,
-            best: None,
+            sink,
             counts: TraversalCounts::default(),
         };
         if let Some((t0, t1)) = clip(&self.bounds, q) {
-            self.visit::<COUNT, ANY>(0, self.bounds.min, self.bounds.max, t0, t1, q, &mut s);
+            self.visit::<COUNT, S>(0, self.bounds.min, self.bounds.max, t0, t1, q, &mut s);
         }
-        (s.best, s.counts)
+        (s.sink, s.counts)
     }
 
     /// Visits the subtree of `node` (box `lo..hi`) over the ray interval `[t0, t1]`.
-    /// Returns true when the traversal is finished: any hit found (`ANY`), or a closest
-    /// hit nearer than the exit of this subtree's last visited child.
+    /// Returns true when the traversal is finished: the sink says so (any hit found),
+    /// or the nearest hit kept is nearer than the exit of this subtree's last visited
+    /// child.
     #[allow(clippy::too_many_arguments)]
-    fn visit<const COUNT: bool, const ANY: bool>(
+    fn visit<const COUNT: bool, S: LeafSink>(
         &self,
         node: usize,
         lo: Vec3,
@@ -226,24 +223,15 @@ impl<P: Primitives> Octree<P> {
         t0: f32,
         t1: f32,
         q: &RayQuery,
-        s: &mut RayState,
+        s: &mut RayState<S>,
     ) -> bool {
         s.counts.node::<COUNT>();
         let n = self.nodes[node];
         if n.count != INTERIOR {
             for &id in &self.refs[n.first as usize..(n.first + n.count) as usize] {
                 s.counts.prim::<COUNT>();
-                if let Some(h) = self.prims.intersect(id as usize, q, s.tmax) {
-                    s.best = Some(Hit {
-                        t: h.t,
-                        prim: id,
-                        u: h.u,
-                        v: h.v,
-                    });
-                    if ANY {
-                        return true;
-                    }
-                    s.tmax = h.t;
+                if s.sink.test(&self.prims, id, q) {
+                    return true;
                 }
             }
             return false;
@@ -277,11 +265,11 @@ impl<P: Primitives> Octree<P> {
             };
             let exit = cross[axis].min(t1);
             let (clo, chi) = child_box(lo, hi, mid, child);
-            if self.visit::<COUNT, ANY>(n.first as usize + child, clo, chi, t, exit, q, s) {
+            if self.visit::<COUNT, S>(n.first as usize + child, clo, chi, t, exit, q, s) {
                 return true;
             }
             // Closest hit before the next child's entry: nothing later can be nearer.
-            if s.tmax <= exit {
+            if s.sink.tmax() <= exit {
                 return true;
             }
             if cross[axis] >= t1 {
@@ -295,11 +283,12 @@ impl<P: Primitives> Octree<P> {
 }
 
 impl<P: Primitives> CountedTraversal for Octree<P> {
-    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+    fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-    ) -> (Option<Hit>, TraversalCounts) {
-        self.query::<COUNT, ANY>(q)
+        sink: S,
+    ) -> (S, TraversalCounts) {
+        self.query::<COUNT, S>(q, sink)
     }
 
     fn build_info(&self) -> &AccelInfo {

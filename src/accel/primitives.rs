@@ -16,6 +16,11 @@ pub trait Primitives: Send + Sync + Sized {
     }
     /// Closest intersection of primitive `i` inside `(q.tmin, tmax)`.
     fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit>;
+    /// Every intersection of primitive `i` inside `(q.tmin, tmax)`, nearest first, each
+    /// with whether the ray meets the front face there: the candidates of a filtered
+    /// query ([`super::filter`]). The nearest one is exactly what
+    /// [`intersect`](Primitives::intersect) returns.
+    fn intersect_each(&self, i: usize, q: &RayQuery, tmax: f32, f: &mut dyn FnMut(PrimHit, bool));
     /// The same set in a new order: element `k` of the result is element `order[k]` of `self`.
     fn permute(&self, order: &[u32]) -> Self;
     /// Bytes of primitive data held.
@@ -107,6 +112,11 @@ impl Primitives for Triangles {
         intersect_triangle(q, self.v0[i], self.v1[i], self.v2[i], tmax)
     }
 
+    fn intersect_each(&self, i: usize, q: &RayQuery, tmax: f32, f: &mut dyn FnMut(PrimHit, bool)) {
+        let corners = [self.v0[i], self.v1[i], self.v2[i]];
+        super::filter::triangle_candidates(q, corners, tmax, f);
+    }
+
     fn permute(&self, order: &[u32]) -> Self {
         Triangles {
             v0: order.iter().map(|&i| self.v0[i as usize]).collect(),
@@ -165,6 +175,10 @@ impl Primitives for Spheres {
             u: 0.0,
             v: 0.0,
         })
+    }
+
+    fn intersect_each(&self, i: usize, q: &RayQuery, tmax: f32, f: &mut dyn FnMut(PrimHit, bool)) {
+        super::filter::sphere_candidates(q, self.center[i], self.radius[i], tmax, f);
     }
 
     #[inline]

@@ -9,7 +9,8 @@
 //! surface lies within rounding distance of a region is in it, and the traversal may
 //! round cell boundaries either way without ever skipping a primitive the ray hits.
 
-use super::{Accel, AccelInfo};
+use super::filter::{FilterSink, HitFilter, QueryOptions};
+use super::{Accel, AccelInfo, Primitives};
 use crate::geometry::{Aabb, Hit, Ray, RayQuery};
 use glam::Vec3;
 
@@ -175,21 +176,93 @@ pub fn sphere_overlaps_box(center: Vec3, radius: f32, b: &Aabb) -> bool {
     d.length_squared() <= radius * radius * (1.0 + 1e-5)
 }
 
-/// What a spatial subdivision implements: one traversal with compile-time switches for
-/// counting (`COUNT`) and any-hit (`ANY`). The `Accel` entry points and the counting
-/// twin are written once, below, for all three structures.
+/// What a spatial traversal does with the primitives of a cell, voxel or leaf: the
+/// plain closest/any hit ([`NearestSink`]) or a filtered query ([`FilterSink`]). The
+/// traversals are generic over it (monomorphised, the sink a by-value local holding
+/// the `tmax` and hit the traversals kept before), so the plain queries do the same
+/// work as before filters existed.
+pub(crate) trait LeafSink {
+    /// The current end of the ray's interval (the nearest hit kept so far).
+    fn tmax(&self) -> f32;
+    /// Tests primitive `id`; true ends the traversal.
+    fn test<P: Primitives>(&mut self, prims: &P, id: u32, q: &RayQuery) -> bool;
+}
+
+/// The plain query: nearest hit, or (`ANY`) the first hit found.
+pub(crate) struct NearestSink<const ANY: bool> {
+    tmax: f32,
+    best: Option<Hit>,
+}
+
+impl<const ANY: bool> NearestSink<ANY> {
+    #[inline(always)]
+    pub fn new(q: &RayQuery) -> Self {
+        NearestSink {
+            tmax: q.tmax,
+            best: None,
+        }
+    }
+}
+
+impl<const ANY: bool> LeafSink for NearestSink<ANY> {
+    #[inline(always)]
+    fn tmax(&self) -> f32 {
+        self.tmax
+    }
+
+    #[inline(always)]
+    fn test<P: Primitives>(&mut self, prims: &P, id: u32, q: &RayQuery) -> bool {
+        if let Some(h) = prims.intersect(id as usize, q, self.tmax) {
+            self.best = Some(Hit {
+                t: h.t,
+                prim: id,
+                u: h.u,
+                v: h.v,
+            });
+            if ANY {
+                return true;
+            }
+            self.tmax = h.t;
+        }
+        false
+    }
+}
+
+impl LeafSink for FilterSink<'_, '_> {
+    #[inline]
+    fn tmax(&self) -> f32 {
+        self.tmax
+    }
+
+    #[inline]
+    fn test<P: Primitives>(&mut self, prims: &P, id: u32, q: &RayQuery) -> bool {
+        FilterSink::test(self, prims, id as usize, id, q)
+    }
+}
+
+/// What a spatial subdivision implements: one traversal, generic over what it does
+/// with the primitives it reaches ([`LeafSink`]), with a compile-time switch for
+/// counting (`COUNT`). The sink is passed by value and handed back, so that the plain
+/// query's `tmax` and hit stay traversal locals as they were before sinks. The
+/// `Accel` entry points and the counting twin are written once, below, for all three
+/// structures.
 pub(crate) trait CountedTraversal: Send + Sync {
-    fn traverse_counted<const COUNT: bool, const ANY: bool>(
+    fn traverse_with<const COUNT: bool, S: LeafSink>(
         &self,
         q: &RayQuery,
-    ) -> (Option<Hit>, TraversalCounts);
+        sink: S,
+    ) -> (S, TraversalCounts);
 
     fn build_info(&self) -> &AccelInfo;
 
     /// Closest hit with traversal counts (the counting twin of `closest_hit`).
     fn closest_hit_counted(&self, ray: &Ray) -> (Option<Hit>, TraversalCounts) {
         match RayQuery::new(ray) {
-            Some(q) => self.traverse_counted::<true, false>(&q),
+            Some(q) => {
+                let (sink, counts) =
+                    self.traverse_with::<true, _>(&q, NearestSink::<false>::new(&q));
+                (sink.best, counts)
+            }
             None => (None, TraversalCounts::default()),
         }
     }
@@ -197,12 +270,29 @@ pub(crate) trait CountedTraversal: Send + Sync {
 
 impl<T: CountedTraversal> Accel for T {
     fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse_counted::<false, false>(&RayQuery::new(ray)?)
+        let q = RayQuery::new(ray)?;
+        self.traverse_with::<false, _>(&q, NearestSink::<false>::new(&q))
             .0
+            .best
     }
 
     fn any_hit(&self, ray: &Ray) -> bool {
-        RayQuery::new(ray).is_some_and(|q| self.traverse_counted::<false, true>(&q).0.is_some())
+        RayQuery::new(ray).is_some_and(|q| {
+            let (sink, _) = self.traverse_with::<false, _>(&q, NearestSink::<true>::new(&q));
+            sink.best.is_some()
+        })
+    }
+
+    /// Primitives spanning several cells are tested once (the sink deduplicates).
+    fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut HitFilter<'_>,
+    ) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        let sink = FilterSink::new(&q, opts, filter).deduplicating();
+        self.traverse_with::<false, _>(&q, sink).0.best
     }
 
     fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {

@@ -4,6 +4,7 @@
 
 pub mod region;
 pub mod sampling;
+pub mod shadow;
 pub mod wavefront;
 pub mod whitted;
 
@@ -91,6 +92,9 @@ pub struct RenderOptions {
     pub sampler: SamplerKind,
     /// Pixel reconstruction filter.
     pub filter: FilterKind,
+    /// Shadow rays through glass attenuated by its transmission instead of blocked
+    /// ([`shadow`]).
+    pub transmitted_shadows: bool,
     /// Called as tiles finish; `None` for silence.
     pub progress: Option<ProgressFn>,
     /// Render only these pixels (`--crop`, `--tile`); `None` for the whole image.
@@ -115,6 +119,7 @@ impl std::fmt::Debug for RenderOptions {
             .field("samples", &self.samples)
             .field("sampler", &self.sampler)
             .field("filter", &self.filter)
+            .field("transmitted_shadows", &self.transmitted_shadows)
             .field(
                 "progress",
                 &self.progress.as_ref().map(|_| "Fn(done, total)"),
@@ -145,6 +150,7 @@ impl PartialEq for RenderOptions {
             && self.crop == o.crop
             && self.sample_range == o.sample_range
             && self.keep_sums == o.keep_sums
+            && self.transmitted_shadows == o.transmitted_shadows
             && same_progress
     }
 }
@@ -162,6 +168,7 @@ impl RenderOptions {
             samples: s.samples,
             sampler: SamplerKind::default(),
             filter: FilterKind::default(),
+            transmitted_shadows: s.transmitted_shadows,
             progress: None,
             crop: None,
             sample_range: None,

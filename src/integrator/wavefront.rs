@@ -33,6 +33,7 @@
 
 use super::RenderOptions;
 use super::RenderOutput;
+use super::shadow;
 use super::whitted::{
     CameraSampler, ChildKind, Emitted, PixelSamples, Shader, SurfaceInteraction, Tile, TileResult,
     render_tiles, resolve_pixel,
@@ -238,6 +239,9 @@ fn render_tile(
     ws.order.clear();
     ws.camera.clear();
 
+    // Shadow rays through glass (`shadow` module) need the scene to look up materials.
+    let transmit = shadow::transmits(scene, opts.transmitted_shadows).then_some(scene);
+
     // Camera rays.
     let t = Instant::now();
     let tile_w = tile.x1 - tile.x0;
@@ -272,7 +276,14 @@ fn render_tile(
     let t = Instant::now();
     shade_queue(&shader, &ws.camera, &ws.hits, 0, rays_per_pixel, sinks);
     stages.shade += ms_since(t);
-    trace_shadows(accel, sinks, &mut ws.occluded, &mut ws.scratch, &mut stages);
+    trace_shadows(
+        accel,
+        transmit,
+        sinks,
+        &mut ws.occluded,
+        &mut ws.scratch,
+        &mut stages,
+    );
 
     // Later waves: the child queues, one kind at a time.
     let mut depth = 1;
@@ -300,7 +311,14 @@ fn render_tile(
             stages.shade += ms_since(t);
             queue.clear();
         }
-        trace_shadows(accel, sinks, &mut ws.occluded, &mut ws.scratch, &mut stages);
+        trace_shadows(
+            accel,
+            transmit,
+            sinks,
+            &mut ws.occluded,
+            &mut ws.scratch,
+            &mut stages,
+        );
         depth += 1;
     }
 
@@ -388,9 +406,13 @@ fn shade_queue(
     }
 }
 
-/// Traces both shadow queues for occlusion and adds what reaches the lights.
+/// Traces both shadow queues for occlusion and adds what reaches the lights. With
+/// `transmit` (transmitted shadows in a scene with glass) a blocked ray is traced again
+/// through the transmissive surfaces and adds its contribution times their
+/// transmission ([`shadow::transmittance`]), as the recursive integrator does.
 fn trace_shadows(
     accel: &SceneAccel,
+    transmit: Option<&Scene>,
     sinks: &mut Sinks,
     occluded: &mut Vec<bool>,
     scratch: &mut BatchScratch,
@@ -410,9 +432,20 @@ fn trace_shadows(
         occluded.clear();
         occluded.resize(q.rays.len(), false);
         accel.any_hit_batch(&q.rays, occluded, scratch);
-        for ((&blocked, &slot), &c) in occluded.iter().zip(&q.slot).zip(&q.contribution) {
+        for (((&blocked, &slot), &c), ray) in occluded
+            .iter()
+            .zip(&q.slot)
+            .zip(&q.contribution)
+            .zip(&q.rays)
+        {
             if !blocked {
                 acc[slot as usize] += c;
+            } else if let Some(scene) = transmit {
+                sinks.rays.transmitted_shadow += 1;
+                let t = shadow::transmittance(scene, accel, ray);
+                if t != Vec3::ZERO {
+                    acc[slot as usize] += c * t;
+                }
             }
         }
         q.rays.clear();

@@ -33,7 +33,7 @@
 use super::sampling::{
     Dimension, PixelRng, decorrelate, fill_1d, fill_2d, sample_aperture, sample_phong_lobe,
 };
-use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
+use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind, shadow};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::{Film, PixelSums, partial};
 use crate::geometry::{Ray, offset_ray_origin_scaled};
@@ -901,6 +901,8 @@ impl Shader<'_> {
 struct Tracer<'a> {
     shader: Shader<'a>,
     accel: &'a SceneAccel,
+    /// Shadow rays blocked by glass are traced again for its transmission.
+    transmits: bool,
     rays: RayCounts,
     drawn: EffectSamplesDrawn,
     /// What each depth of the current path emitted, reused so that shading never
@@ -928,6 +930,7 @@ fn render_tile(
     let mut tracer = Tracer {
         shader: Shader::new(scene, opts, plan),
         accel,
+        transmits: shadow::transmits(scene, opts.transmitted_shadows),
         rays: RayCounts::default(),
         drawn: EffectSamplesDrawn::default(),
         emitted: std::mem::take(&mut ws.emitted),
@@ -995,6 +998,13 @@ impl Tracer<'_> {
         for s in &out.shadow {
             if !self.accel.any_hit(&s.ray) {
                 l += s.contribution;
+            } else if self.transmits {
+                // Blocked, but perhaps only by glass (`shadow` module).
+                self.rays.transmitted_shadow += 1;
+                let t = shadow::transmittance(self.shader.scene, self.accel, &s.ray);
+                if t != Vec3::ZERO {
+                    l += s.contribution * t;
+                }
             }
         }
         for c in &out.children {

@@ -202,6 +202,11 @@ pub struct RenderSettings {
     pub min_contribution: f32,
     /// Samples per effect besides the eye (pixel) samples, which are `spp`.
     pub samples: SampleCounts,
+    /// Shadow rays pass through transmissive (glass) surfaces, attenuated by each
+    /// surface's `transmission` (POV-Ray's default: filtered light, no caustics, no
+    /// bending). Off: every surface blocks light. Default on; see
+    /// `integrator::shadow` for why.
+    pub transmitted_shadows: bool,
 }
 
 /// How many samples each distributed effect takes (Cook, Porter, Carpenter 1984). The
@@ -247,6 +252,7 @@ impl Default for RenderSettings {
             max_depth: 8,
             min_contribution: 1e-3,
             samples: SampleCounts::default(),
+            transmitted_shadows: true,
         }
     }
 }

@@ -60,6 +60,7 @@ struct RenderDef {
     max_depth: Option<Spanned<u32>>,
     min_contribution: Option<Spanned<f32>>,
     samples: Option<SamplesDef>,
+    transmitted_shadows: Option<bool>,
 }
 
 /// `samples = { eye = 1, shadow = 16, glossy = 4, lens = 1, time = 1 }`.
@@ -415,6 +416,9 @@ impl<'a> Builder<'a> {
                 ));
             }
             s.min_contribution = x;
+        }
+        if let Some(on) = r.transmitted_shadows {
+            s.transmitted_shadows = on;
         }
         if let Some(n) = &r.samples {
             if let Some(eye) = &n.eye {

@@ -1,0 +1,250 @@
+//! Transmitted shadows (`integrator::shadow`): shadow rays through glass are filtered
+//! by its transmission, once per surface crossed; an opaque surface still blocks. Every
+//! case runs on both integrators and every acceleration structure.
+//!
+//! The scene: a diffuse floor lit by a directional light from straight above, ambient
+//! zero, and objects stacked above the origin. A camera below the objects (y = 0.45;
+//! they start at y = 0.5) looks down at the origin through a 2 degree field of view, so
+//! every pixel sees the floor directly within 0.05 of the origin, and every shadow ray
+//! goes straight up through the objects' middles.
+
+use glam::Vec3;
+use packet_render::accel::{AccelKind, SceneAccel};
+use packet_render::integrator::{IntegratorKind, RenderOptions, RenderOutput};
+use packet_render::scene::load::parse_toml_scene;
+use packet_render::scene::{Camera, Light, Material, Scene, SceneBuilder};
+
+const SIZE: u32 = 4;
+
+/// What sits above the floor.
+#[derive(Clone, Copy)]
+enum Above {
+    Nothing,
+    /// A glass sphere of this transmission and ior at height 1, radius 0.5.
+    GlassSphere(Vec3, f32),
+    /// A single glass quad (two triangles) of this transmission at height 1.
+    GlassPane(Vec3),
+    /// A clear glass sphere at height 1 and an opaque one at 2.2, or (`true`) the other
+    /// way round.
+    OpaqueAndGlass(bool),
+}
+
+fn glass(transmission: Vec3, ior: f32) -> Material {
+    Material {
+        name: "glass".into(),
+        diffuse: Vec3::ZERO,
+        transmission,
+        ior,
+        ..Default::default()
+    }
+}
+
+fn scene(above: Above, transmitted: bool) -> Scene {
+    let mut b = SceneBuilder::new();
+    let floor = b.add_material(Material::diffuse("floor", Vec3::splat(0.8)));
+    b.add_quad(
+        Vec3::new(-8.0, 0.0, -8.0),
+        Vec3::new(0.0, 0.0, 16.0),
+        Vec3::new(16.0, 0.0, 0.0),
+        floor,
+    );
+    let low = Vec3::new(0.0, 1.0, 0.0);
+    let high = Vec3::new(0.0, 2.2, 0.0);
+    match above {
+        Above::Nothing => {}
+        Above::GlassSphere(t, ior) => {
+            let m = b.add_material(glass(t, ior));
+            b.add_sphere(low, 0.5, m);
+        }
+        Above::GlassPane(t) => {
+            let m = b.add_material(glass(t, 1.5));
+            // The shared diagonal (x + z = 1) keeps clear of the shadow rays.
+            b.add_quad(
+                Vec3::new(-0.3, 1.0, -0.7),
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 2.0),
+                m,
+            );
+        }
+        Above::OpaqueAndGlass(opaque_below) => {
+            let g = b.add_material(glass(Vec3::ONE, 1.0));
+            let o = b.add_material(Material::diffuse("opaque", Vec3::splat(0.5)));
+            let (og, oo) = if opaque_below {
+                (high, low)
+            } else {
+                (low, high)
+            };
+            b.add_sphere(og, 0.5, g);
+            b.add_sphere(oo, 0.5, o);
+        }
+    }
+    b.add_light(Light::Directional {
+        direction: -Vec3::Y,
+        irradiance: Vec3::splat(3.0),
+    });
+    b.ambient = Vec3::ZERO;
+    b.background = Vec3::splat(0.3);
+    b.camera = Some(Camera {
+        eye: Vec3::new(0.0, 0.45, 1.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        vfov_deg: 2.0,
+    });
+    b.settings.transmitted_shadows = transmitted;
+    b.finish().unwrap()
+}
+
+fn render(scene: &Scene, integrator: IntegratorKind, accel: AccelKind) -> RenderOutput {
+    let mut o = RenderOptions::from_scene(scene);
+    o.width = SIZE;
+    o.height = SIZE;
+    o.spp = 1;
+    let accel = SceneAccel::build(scene, accel);
+    integrator.render(scene, &accel, &o)
+}
+
+fn pixels(out: &RenderOutput) -> Vec<Vec3> {
+    (0..SIZE * SIZE)
+        .map(|i| out.film.get(i % SIZE, i / SIZE))
+        .collect()
+}
+
+/// Runs `check(integrator, accel, lit floor, render of the scene)` for every integrator
+/// and structure.
+fn for_each_render(above: Above, transmitted: bool, check: impl Fn(&str, &[Vec3], &RenderOutput)) {
+    let lit = scene(Above::Nothing, transmitted);
+    let s = scene(above, transmitted);
+    for &integrator in IntegratorKind::ALL {
+        for &accel in AccelKind::ALL {
+            let base = pixels(&render(&lit, integrator, accel));
+            assert!(base.iter().all(|p| p.min_element() > 0.1), "floor is lit");
+            let out = render(&s, integrator, accel);
+            check(&format!("{integrator}/{accel}"), &base, &out);
+        }
+    }
+}
+
+/// An ior 1.0, transmission 1 sphere is invisible to camera rays and must not shadow.
+/// Tolerance zero: the transmission product is exactly 1.0, so each shadow ray adds
+/// exactly its unblocked contribution and every other ray is the same as without the
+/// sphere. (Before transmitted shadows these pixels were black.)
+#[test]
+fn clear_glass_at_ior_one_casts_no_shadow() {
+    for_each_render(
+        Above::GlassSphere(Vec3::ONE, 1.0),
+        true,
+        |name, base, out| {
+            assert_eq!(pixels(out), base, "{name}");
+            // One shadow ray per pixel, every one blocked by the plain query, traced again.
+            assert_eq!(out.rays.transmitted_shadow, (SIZE * SIZE) as u64, "{name}");
+        },
+    );
+}
+
+/// Coloured glass filters the light once per surface: a sphere crossed through its
+/// middle twice (`T²`), a single pane once (`T`). Relative tolerance 1e-5: the pixel is
+/// the same sum scaled by `T²`, so only a few f32 roundings (6e-8 each) separate the
+/// two.
+#[test]
+fn coloured_glass_gives_a_coloured_shadow() {
+    let t = Vec3::new(0.8, 0.4, 0.2);
+    let expect = |name: &str, base: &[Vec3], out: &RenderOutput, factor: Vec3| {
+        for (p, b) in pixels(out).iter().zip(base) {
+            let want = *b * factor;
+            assert!(
+                ((*p - want).abs() / want).max_element() < 1e-5,
+                "{name}: {p} against {want}"
+            );
+        }
+    };
+    for_each_render(Above::GlassSphere(t, 1.5), true, |name, base, out| {
+        expect(name, base, out, t * t);
+    });
+    for_each_render(Above::GlassPane(t), true, |name, base, out| {
+        expect(name, base, out, t);
+    });
+}
+
+/// An opaque object on the same shadow ray as glass, above or below it: black.
+#[test]
+fn opaque_and_glass_on_one_shadow_ray_is_black() {
+    for opaque_below in [false, true] {
+        for_each_render(Above::OpaqueAndGlass(opaque_below), true, |name, _, out| {
+            assert!(
+                pixels(out).iter().all(|p| *p == Vec3::ZERO),
+                "{name}, opaque below: {opaque_below}"
+            );
+        });
+    }
+}
+
+/// Switched off, glass blocks light like any surface and nothing is traced again.
+#[test]
+fn switched_off_glass_blocks_light() {
+    for_each_render(Above::GlassSphere(Vec3::ONE, 1.0), false, |name, _, out| {
+        assert!(pixels(out).iter().all(|p| *p == Vec3::ZERO), "{name}");
+        assert_eq!(out.rays.transmitted_shadow, 0, "{name}");
+    });
+}
+
+#[test]
+fn toml_key_sets_it_and_the_default_is_on() {
+    let base = "[camera]\neye = [0, 1, 5]\ntarget = [0, 0, 0]\nfov = 40\n\
+                [[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n";
+    let path = std::path::Path::new("inline.toml");
+    let on = parse_toml_scene(base, path).unwrap();
+    assert!(on.settings.transmitted_shadows);
+    let off = parse_toml_scene(
+        &format!("[render]\ntransmitted_shadows = false\n{base}"),
+        path,
+    )
+    .unwrap();
+    assert!(!off.settings.transmitted_shadows);
+    assert!(!RenderOptions::from_scene(&off).transmitted_shadows);
+    let bad = parse_toml_scene(&format!("[render]\ntransmitted_shadows = 1\n{base}"), path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        bad.contains("inline.toml:2:") && bad.contains("expected a boolean"),
+        "{bad}"
+    );
+}
+
+/// The CLI flag overrides the scene: the Whitted room's glass sphere shadows the floor,
+/// so by default blocked shadow rays are traced again; `--transmitted-shadows false`
+/// traces none again and the image changes.
+#[test]
+fn cli_flag_switches_it() {
+    let dir = std::env::temp_dir().join(format!("packet-render-tshadow-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitted.toml");
+    let run = |tag: &str, extra: &[&str]| {
+        let (png, json) = (
+            dir.join(format!("{tag}.png")),
+            dir.join(format!("{tag}.json")),
+        );
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_packet-render"))
+            .args([
+                "render",
+                scene.to_str().unwrap(),
+                "-o",
+                png.to_str().unwrap(),
+            ])
+            .args(["--width", "40", "--height", "30", "--quiet", "--stats-json"])
+            .arg(&json)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let again = stats["rays"]["transmitted_shadow"].as_u64().unwrap();
+        (std::fs::read(&png).unwrap(), again)
+    };
+    let (on, on_again) = run("on", &[]);
+    let (off, off_again) = run("off", &["--transmitted-shadows", "false"]);
+    assert!(on_again > 0, "no shadow ray met the glass");
+    assert_eq!(off_again, 0);
+    assert_ne!(on, off, "the glass shadow should differ");
+    let _ = std::fs::remove_dir_all(&dir);
+}
