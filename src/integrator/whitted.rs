@@ -591,7 +591,14 @@ impl Shader<'_> {
         let mut stream: Option<PixelRng> = None;
         out.local = m.emission;
         if m.diffuse != Vec3::ZERO || m.checker.is_some() || m.specular != Vec3::ZERO {
-            let albedo = m.albedo_at(si.p);
+            // The winding normal, not the one facing the ray: a checker surface on a
+            // cell boundary shows the same cell from both sides.
+            let outward = if si.front_face {
+                si.n_geometric
+            } else {
+                -si.n_geometric
+            };
+            let albedo = m.albedo_on_surface(si.p, outward, si.scale);
             out.local += scene.ambient * albedo;
             self.direct(
                 -d,
