@@ -364,7 +364,7 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
     report.write_csv(&args.csv)?;
     report.write_plot(
         &args.plot,
-        &format!("{}: RMSE against render time", args.scene.display()),
+        &format!("{}: display RMSE against render time", args.scene.display()),
     )?;
     Ok(())
 }
