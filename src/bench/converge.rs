@@ -214,6 +214,9 @@ pub fn run(
     })
 }
 
+/// One number of a row, for fitting slopes.
+type Field = fn(&ConvergeRow) -> f64;
+
 fn slopes(rows: &[ConvergeRow]) -> Vec<Slope> {
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
@@ -225,11 +228,11 @@ fn slopes(rows: &[ConvergeRow]) -> Vec<Slope> {
         .into_iter()
         .map(|n| {
             let pts: Vec<&ConvergeRow> = rows.iter().filter(|r| r.strategy == n).collect();
-            let slope = |x: fn(&ConvergeRow) -> f64, y: fn(&ConvergeRow) -> f64| {
+            let slope = |x: Field, y: Field| {
                 loglog_slope(&pts.iter().map(|r| (x(r), y(r))).collect::<Vec<_>>())
             };
-            let (time, budget): (fn(&ConvergeRow) -> f64, fn(&ConvergeRow) -> f64) =
-                (|r| r.seconds, |r| r.budget as f64);
+            let time: Field = |r| r.seconds;
+            let budget: Field = |r| r.budget as f64;
             Slope {
                 strategy: n.to_string(),
                 vs_time: slope(time, |r| r.rmse),
