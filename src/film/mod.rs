@@ -1,6 +1,7 @@
 //! Film: f32 accumulation, tone mapping, image output and error metrics.
 
 mod output;
+mod preflight;
 
 use crate::error::{Error, Result};
 use glam::Vec3;
@@ -9,6 +10,7 @@ pub use output::{
     INTERRUPTED_EXIT_CODE, SUPPORTED_EXTENSIONS, check_image_path, install_interrupt_handler,
     write_atomic,
 };
+pub use preflight::check_output_paths;
 
 /// Linear RGB radiance per pixel, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
