@@ -109,8 +109,9 @@ pub struct SampleProducts {
 /// Estimated peak bytes of the per-thread buffers: for the wavefront integrator, the
 /// queues of one tile (`TILE^2` pixels with all their samples: camera queue, hits and
 /// accumulators, shadow queues, the first child wave) per worker; for the recursive one,
-/// one pixel's camera rays per worker. A lower bound of the real peak (the scene and
-/// the structure come on top), used to refuse renders that cannot fit.
+/// one pixel's camera rays per worker. It assumes every camera ray hits and emits its
+/// shadow and glossy rays (the first wave's worst case) and leaves out the scene and
+/// the structure; used to refuse renders that cannot fit.
 pub fn peak_buffer_bytes(
     integrator: IntegratorKind,
     products: &SampleProducts,
