@@ -124,3 +124,62 @@ fn rays_from_far_walls_agree_with_brute_force() {
         );
     }
 }
+
+/// Adversarial case for primitive-relative margins: walls of small triangles 1e-4 from
+/// the middle planes x = 0 and y = 0 of every octree level (and of grid cells and kd
+/// splits nearby), hit by rays from 1e4..4e4 away that cross both planes within a few
+/// 1e-3 of the walls, where the traversal's plane distances are rounded by about as
+/// much. A skipped region would show as a ray passing through a wall.
+#[test]
+fn rays_crossing_region_corners_near_walls_agree_with_brute_force() {
+    let half = 5e4f32;
+    let mut corners = enclosure(half);
+    // at x = +-1e-4: a wall below y = 0 and one above, each 1e-6 from the plane
+    for sx in [1.0f32, -1.0] {
+        for sy in [1.0f32, -1.0] {
+            for k in 0..50 {
+                let z0 = -1e-2 + k as f32 * 4e-4;
+                let x = sx * 1e-4;
+                corners.push([
+                    Vec3::new(x, sy * -1e-6, z0),
+                    Vec3::new(x, sy * -1e-2, z0),
+                    Vec3::new(x, sy * -1e-6, z0 + 4e-4),
+                ]);
+                corners.push([
+                    Vec3::new(x, sy * -1e-2, z0),
+                    Vec3::new(x, sy * -1e-2, z0 + 4e-4),
+                    Vec3::new(x, sy * -1e-6, z0 + 4e-4),
+                ]);
+            }
+        }
+    }
+    let prims = Triangles::from_corners(&corners);
+    let bf = BruteForce::new(prims.clone());
+    let mut rng = Rng(5);
+    let rays: Vec<Ray> = (0..50_000)
+        .map(|_| {
+            let target = Vec3::new(0.0, -rng.range(0.0, 4e-3), rng.range(-9e-3, 9e-3));
+            let dir = Vec3::new(1.0, rng.range(0.3, 3.0), rng.range(-1e-3, 1e-3)).normalize();
+            Ray::new(target - dir * rng.range(1e4, 4e4), dir)
+        })
+        .collect();
+    let want: Vec<_> = rays
+        .iter()
+        .map(|r| bf.closest_hit(r).map(|h| h.t))
+        .collect();
+    // nearly every ray stops at a wall near the origin, not at the far enclosure
+    assert!(want.iter().filter(|w| w.is_some_and(|t| t < 4.1e4)).count() > 49_000);
+    for kind in [AccelKind::Grid, AccelKind::Octree, AccelKind::KdTree] {
+        let a = kind.build(prims.clone());
+        let bad: Vec<usize> = (0..rays.len())
+            .filter(|&i| a.closest_hit(&rays[i]).map(|h| h.t) != want[i])
+            .collect();
+        assert!(
+            bad.is_empty(),
+            "{kind}: {} of {} rays differ from brute force, first {:?}",
+            bad.len(),
+            rays.len(),
+            bad.first().map(|&i| rays[i])
+        );
+    }
+}
