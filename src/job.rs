@@ -6,7 +6,7 @@ use crate::accel::{AccelInfo, AccelKind, SceneAccel};
 use crate::error::{Error, Result};
 use crate::film::partial::{self, PartialHeader, PartialImage};
 use crate::integrator::{
-    FilterKind, IntegratorKind, PixelBounds, RenderOptions, RenderOutput, SamplerKind,
+    FilterKind, IntegratorKind, PixelBounds, RenderOptions, RenderOutput, SamplerKind, budget,
 };
 use crate::scene::{self, SampleCounts, Scene};
 use crate::stats::{EffectSamplesDrawn, PhaseTimes, RayCounts, StageTimes, ms_since};
@@ -43,8 +43,11 @@ pub struct RenderJob {
     pub accel: AccelKind,
     pub integrator: IntegratorKind,
     pub seed: u64,
-    /// Worker threads; 0 means all cores.
+    /// Worker threads; 0 means all cores; at most [`budget::MAX_THREADS`].
     pub threads: usize,
+    /// Files the caller writes after the render (`--stats-json`): checked with the
+    /// image before any work, and none may be the same file as another.
+    pub extra_outputs: Vec<PathBuf>,
     /// Which part of the frame to render (default: all of it).
     pub part: Part,
 }
@@ -116,6 +119,7 @@ impl RenderJob {
     /// Runs the job in a thread pool of the requested size. Nothing is written unless
     /// every step before the write succeeded, and the write itself is atomic.
     pub fn run(&self, progress: Option<Progress>) -> Result<RenderReport> {
+        budget::validate_threads(self.threads)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(self.threads)
             .build()
@@ -129,14 +133,25 @@ impl RenderJob {
         if !partial {
             crate::film::check_image_path(&self.output)?;
         }
+        let outputs: Vec<&std::path::Path> = std::iter::once(&self.output)
+            .chain(&self.extra_outputs)
+            .map(PathBuf::as_path)
+            .collect();
+        crate::film::check_output_paths(&outputs)?;
         let mut time = PhaseTimes::default();
         let t = Instant::now();
         let scene = scene::load::load_scene(&self.scene)?;
         time.load = ms_since(t);
+        if let Some(w) = scene::nothing_visible_warning(&scene, &self.scene.display().to_string()) {
+            eprintln!("warning: {w}");
+        }
 
         let mut opts = self.options(&scene)?;
         opts.progress = progress;
         opts.keep_sums = partial;
+        let products = budget::validate_sample_products(&scene, &opts)?;
+        let estimate = budget::peak_buffer_bytes(self.integrator, &products, &opts, threads);
+        budget::check_memory(estimate, budget::available_memory(), self.integrator)?;
 
         let t = Instant::now();
         let accel = SceneAccel::build(&scene, self.accel);

@@ -112,7 +112,7 @@ struct ConvergeArgs {
     budgets: Vec<u32>,
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Worker threads; 0 = all cores.
+    /// Worker threads; 0 = all cores; at most 1024.
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// CSV of every render.
@@ -216,7 +216,7 @@ struct RenderArgs {
     transmitted_shadows: Option<bool>,
     #[command(flatten)]
     sampling: SamplingArgs,
-    /// Worker threads; 0 = all cores.
+    /// Worker threads; 0 = all cores; at most 1024.
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Acceleration structure.
@@ -328,6 +328,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             tile: args.part.tile,
             sample_range: args.part.sample_range,
         },
+        extra_outputs: args.stats_json.iter().cloned().collect(),
     };
     let bar = (!args.quiet).then(progress_bar);
     let report = job.run(bar.as_ref().map(|(_, p)| p.clone()))?;
@@ -398,6 +399,7 @@ fn bench(args: BenchArgs) -> packet_render::Result<()> {
 
 fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
     use packet_render::bench::converge;
+    packet_render::integrator::budget::validate_threads(args.threads)?;
     let scene = packet_render::scene::load::load_scene(&args.scene)?;
     let opts = converge::ConvergeOptions {
         width: args.width,

@@ -367,3 +367,153 @@ fn precision_prints_one_json_row_per_case_and_kernel() {
         assert!(["scalar", "bvh4-single", "bvh4-packet"].contains(&r["kernel"].as_str().unwrap()));
     }
 }
+
+// ------------------------------------------------ resources and outputs (issue 13)
+
+#[test]
+fn threads_above_the_cap_are_refused_before_work() {
+    let dir = tmp_dir("threads");
+    let out = dir.join("t.png");
+    // Used to run for 16 minutes and then panic setting up 100000 thread stacks.
+    assert_fails(
+        &[&scene("whitted.toml"), "--threads", "100000"],
+        &out,
+        "at most 1024 worker threads",
+    );
+    let o = run(&["render", "--help"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("at most 1024"));
+}
+
+#[test]
+fn sample_products_are_validated_before_work() {
+    let dir = tmp_dir("products");
+    let out = dir.join("p.png");
+    let dof = scene("dof_area.toml");
+    // 65536 x 1024 camera rays per pixel: aborted on a failed 2.4 GB allocation (134)
+    assert_fails(
+        &[
+            &dof,
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "65536",
+            "--lens-samples",
+            "1024",
+        ],
+        &out,
+        "67108864 camera rays per pixel",
+    );
+    // representable, but the wavefront's tile queues would need about 2^32 camera
+    // rays' worth of buffers (hundreds of GiB): refused with the estimate
+    assert_fails(
+        &[
+            &dof,
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "65536",
+            "--lens-samples",
+            "256",
+        ],
+        &out,
+        "GiB (estimated from the sample counts",
+    );
+}
+
+#[test]
+fn output_paths_are_checked_before_loading() {
+    let dir = tmp_dir("outputs");
+    let whitted = scene("whitted.toml");
+    // A missing scene *and* a missing output directory: the output is named, so it
+    // was checked before the scene was even read (and long before rendering).
+    let missing_dir = dir.join("nonexistent_dir").join("x.png");
+    let o = run(&[
+        "render",
+        dir.join("missing.toml").to_str().unwrap(),
+        "-o",
+        missing_dir.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("nonexistent_dir") && e.contains("not usable") && !e.contains("missing.toml"),
+        "{e}"
+    );
+    // --stats-json naming the image: refused, nothing written (used to replace the
+    // PNG with JSON and exit 0)
+    let img = dir.join("same.png");
+    let img_s = img.to_str().unwrap();
+    assert_fails(
+        &[
+            &whitted,
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--stats-json",
+            img_s,
+        ],
+        &img,
+        "same file",
+    );
+    // the same file spelled differently
+    std::fs::create_dir(dir.join("sub")).unwrap();
+    let other = dir.join("sub").join("..").join("same.png");
+    assert_fails(
+        &[&whitted, "--stats-json", other.to_str().unwrap()],
+        &img,
+        "same file",
+    );
+    // --stats-json into a missing directory: used to exit 1 after writing the image
+    assert_fails(
+        &[&whitted, "--stats-json", "/nonexistent_dir_13/x.json"],
+        &img,
+        "nonexistent_dir_13",
+    );
+}
+
+#[test]
+fn scenes_where_nothing_can_be_hit_render_with_a_warning() {
+    let dir = tmp_dir("empty");
+    for (name, text, warning) in [
+        ("empty.obj", "", "no primitives"),
+        ("verts.obj", "v 0 0 0\nv 1 0 0\n", "no primitives"),
+        (
+            "flat.obj",
+            "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+            "all 1 triangles are degenerate",
+        ),
+        (
+            "empty.toml",
+            "[render]\nwidth = 8\nheight = 8\n",
+            "no primitives",
+        ),
+    ] {
+        let s = dir.join(name);
+        std::fs::write(&s, text).unwrap();
+        let out = dir.join(format!("{name}.png"));
+        let o = run(&[
+            "render",
+            s.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--quiet",
+        ]);
+        let e = stderr(&o);
+        assert!(o.status.success(), "{name}: {e}");
+        assert!(
+            e.contains("warning: ") && e.contains(warning),
+            "{name}: {e}"
+        );
+        assert!(out.is_file(), "{name}");
+    }
+}

@@ -2,8 +2,8 @@
 //! Algorithm for Ray Tracing", Eurographics 1987) and per-ray mailboxing.
 
 use super::spatial::{
-    CountedTraversal, LeafSink, Mailbox, TraversalCounts, clip, conservative_pad, grown,
-    moves_along,
+    CountedTraversal, LeafSink, Mailbox, TraversalCounts, bounds_and_margins, clip, grown,
+    moves_along, region_margin,
 };
 use super::{AccelInfo, Primitives};
 use crate::geometry::{Aabb, RayQuery};
@@ -16,8 +16,11 @@ pub struct GridOptions {
     /// Cells per axis; `None` chooses
     /// `res_a = clamp(round(3 * cbrt(n) * e_a / e_max), 1, 1024)` for a scene box of
     /// extents `e` (about `3 cbrt(n)` cells along the longest axis, proportionally fewer
-    /// along the others), halved on every axis while the cell references would exceed
-    /// `max(32 n, 2^20)`, which bounds memory for degenerate inputs.
+    /// along the others; computed in f64, so any finite extent works), scaled down
+    /// until the cell count is at most [`max_cells`]`(n)`, then halved on every axis
+    /// while the cell references would exceed `max(32 n, 2^20)`, which bounds memory
+    /// for degenerate inputs. An explicit resolution is only halved while its cell
+    /// count exceeds [`MAX_CELLS`].
     pub resolution: Option<[u32; 3]>,
     /// Skip primitives this ray already tested in an earlier cell.
     pub mailbox: bool,
@@ -39,6 +42,18 @@ impl Default for GridOptions {
 /// Largest automatic resolution per axis.
 const MAX_RES: u32 = 1024;
 
+/// Memory bound on the cell count whatever the scene: the build holds two `u32` arrays
+/// of one entry per cell (offsets and fill cursors), so `2^26` cells take 512 MiB.
+pub const MAX_CELLS: u64 = 1 << 26;
+
+/// Cells the automatic resolution may use for `n` primitives: `max(32 n, 4096)`
+/// (the `3 cbrt(n)` rule gives at most `27 n` for a cube), at most [`MAX_CELLS`]. Before
+/// issue 13 nothing bounded it: two small triangles at +-1e38 overflowed the f32
+/// resolution formula to 1024^3 cells (8.4 GB).
+pub fn max_cells(n: usize) -> u64 {
+    (32 * n as u64).clamp(4096, MAX_CELLS)
+}
+
 /// A uniform grid over one primitive set, stored CSR-style: the primitive ids of cell
 /// `c` are `refs[offsets[c]..offsets[c + 1]]`, cells in x-fastest order.
 pub struct Grid<P: Primitives> {
@@ -52,17 +67,36 @@ pub struct Grid<P: Primitives> {
     refs: Vec<u32>,
     opts: GridOptions,
     info: AccelInfo,
+    range_evaluations: u64,
 }
 
-/// The automatic resolution of the issue: `3 cbrt(n)` along the longest axis.
-fn auto_resolution(n: usize, extent: Vec3) -> [u32; 3] {
-    let e_max = extent.max_element();
-    let k = 3.0 * (n as f32).cbrt();
+/// The automatic resolution: `3 cbrt(n)` along the longest axis, proportionally fewer
+/// along the others, in f64 (ratios first, so no extent overflows), then scaled down
+/// uniformly until at most [`max_cells`]`(n)` cells.
+fn auto_resolution(n: usize, extent: [f64; 3]) -> [u32; 3] {
+    let e_max = extent.iter().copied().fold(0.0, f64::max);
+    let k = 3.0 * (n as f64).cbrt();
     let mut res = [1u32; 3];
+    if !(e_max > 0.0 && e_max.is_finite()) {
+        return res;
+    }
     for (a, r) in res.iter_mut().enumerate() {
-        if e_max > 0.0 {
-            *r = ((k * extent[a] / e_max).round() as u32).clamp(1, MAX_RES);
-        }
+        *r = (k * (extent[a] / e_max)).round().clamp(1.0, MAX_RES as f64) as u32;
+    }
+    cap_cells(res, max_cells(n))
+}
+
+/// `res` scaled down uniformly (by the cube root of the excess, then one cell at a time
+/// along the longest axis) until its cell count is at most `limit`.
+fn cap_cells(mut res: [u32; 3], limit: u64) -> [u32; 3] {
+    let cells = |r: &[u32; 3]| r.iter().map(|&x| x as u64).fold(1u64, u64::saturating_mul);
+    if cells(&res) > limit {
+        let f = (limit as f64 / cells(&res) as f64).cbrt();
+        res = res.map(|r| ((r as f64 * f).floor() as u32).max(1));
+    }
+    while cells(&res) > limit {
+        let a = (0..3).max_by_key(|&a| res[a]).expect("three axes");
+        res[a] -= 1;
     }
     res
 }
@@ -75,39 +109,60 @@ impl<P: Primitives> Grid<P> {
     pub fn build_with(prims: P, opts: GridOptions) -> Self {
         let start = Instant::now();
         let n = prims.count();
-        let scene = (0..n).fold(Aabb::EMPTY, |b, i| b.union(&prims.bounds(i)));
-        let pad = conservative_pad(&scene);
+        let (prim_bounds, pads, pad) = bounds_and_margins(&prims);
+        let scene = prim_bounds.iter().fold(Aabb::EMPTY, |b, p| b.union(p));
         let bounds = if n == 0 {
             Aabb::EMPTY
         } else {
-            grown(&scene, pad)
+            // kept finite: coordinates near f32::MAX must not grow to infinity
+            let g = grown(&scene, pad);
+            Aabb::new(
+                g.min.max(Vec3::splat(f32::MIN)),
+                g.max.min(Vec3::splat(f32::MAX)),
+            )
         };
-        let extent = bounds.extent();
-        let mut res = opts
-            .resolution
-            .map(|r| r.map(|x| x.max(1)))
-            .unwrap_or_else(|| auto_resolution(n, extent));
+        // in f64: the extent of a box from -2e38 to 2e38 overflows f32
+        let extent = if n == 0 {
+            [0.0; 3]
+        } else {
+            [0, 1, 2].map(|a| bounds.max[a] as f64 - bounds.min[a] as f64)
+        };
+        let mut res = match opts.resolution {
+            Some(r) => cap_cells(r.map(|x| x.max(1)), MAX_CELLS),
+            None => auto_resolution(n, extent),
+        };
 
-        // Per-primitive cell ranges of the grown bounds; coarsen while too many refs.
+        // Per-primitive cell ranges of the grown bounds; coarsen while too many refs. A
+        // pass that is going to coarsen stops as soon as it is over the budget, so
+        // many large primitives (10^7 identical triangles) cost one full pass, not one
+        // per halving.
         let budget = (32 * n as u64).max(1 << 20);
         let mut ranges: Vec<([i32; 3], [i32; 3])> = Vec::with_capacity(n);
+        let mut range_evaluations = 0u64;
+        // cell_of rounds relative to the grid's corner and extent
+        let range_margin = region_margin(&bounds);
         let (cell_size, inv_cell_size) = loop {
-            let cell_size = extent / Vec3::new(res[0] as f32, res[1] as f32, res[2] as f32);
+            let cell_size = Vec3::from_array([0, 1, 2].map(|a| (extent[a] / res[a] as f64) as f32));
             let inv = Vec3::select(
                 cell_size.cmpgt(Vec3::ZERO),
                 Vec3::ONE / cell_size,
                 Vec3::ZERO,
             );
+            let may_coarsen = opts.resolution.is_none() && res != [1, 1, 1];
             ranges.clear();
             let mut total = 0u64;
             for i in 0..n {
-                let b = grown(&prims.bounds(i), pad);
+                let b = grown(&prim_bounds[i], pads[i] + range_margin);
                 let lo = cell_of(b.min, bounds.min, inv, res);
                 let hi = cell_of(b.max, bounds.min, inv, res);
                 total += (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product::<u64>();
                 ranges.push((lo, hi));
+                range_evaluations += 1;
+                if may_coarsen && total > budget {
+                    break;
+                }
             }
-            if total <= budget || opts.resolution.is_some() || res == [1, 1, 1] {
+            if total <= budget || !may_coarsen {
                 break (cell_size, inv);
             }
             res = res.map(|r| r.div_ceil(2));
@@ -116,9 +171,10 @@ impl<P: Primitives> Grid<P> {
         let cells = res.iter().map(|&r| r as usize).product::<usize>();
 
         // Two passes: count, prefix sum, fill (the overlap test runs in both).
-        let cell_box = |c: [i32; 3]| {
+        let cell_box = |c: [i32; 3], pad: f32| {
             let lo = bounds.min + Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) * cell_size;
-            grown(&Aabb::new(lo, lo + cell_size), pad)
+            let cell = Aabb::new(lo, lo + cell_size);
+            grown(&cell, pad + region_margin(&cell))
         };
         let for_each_cell = |i: usize, f: &mut dyn FnMut(usize)| {
             let (lo, hi) = ranges[i];
@@ -128,7 +184,7 @@ impl<P: Primitives> Grid<P> {
                     for x in lo[0]..=hi[0] {
                         if single
                             || !opts.exact_overlap
-                            || prims.overlaps_box(i, &cell_box([x, y, z]))
+                            || prims.overlaps_box(i, &cell_box([x, y, z], pads[i]))
                         {
                             f(((z * res_i[1] + y) * res_i[0] + x) as usize);
                         }
@@ -173,7 +229,14 @@ impl<P: Primitives> Grid<P> {
             refs,
             opts,
             info,
+            range_evaluations,
         }
+    }
+
+    /// Work of choosing the resolution: primitive bounds mapped to cell ranges, over
+    /// all coarsening passes (`n` when the first resolution fits the budget).
+    pub fn range_evaluations(&self) -> u64 {
+        self.range_evaluations
     }
 
     /// Cells per axis.
@@ -290,6 +353,77 @@ mod tests {
     use crate::geometry::Ray;
 
     use crate::accel::spatial::test_scenes::{hits_identical_triangles, identical_triangles, tri};
+
+    #[test]
+    fn huge_extents_get_a_small_bounded_resolution() {
+        // Before issue 13 the f32 formula overflowed (3 cbrt(2) * 2e38 = inf) and clamped
+        // to 1024^3 cells.
+        let res = auto_resolution(2, [2e38; 3]);
+        let cells: u64 = res.iter().map(|&r| r as u64).product();
+        assert!(cells <= max_cells(2), "{res:?}");
+        assert_eq!(res, [4, 4, 4]);
+        // a flat, wide box: proportional, and capped by the primitive count
+        let res = auto_resolution(1000, [f32::MAX as f64 * 2.0, 1.0, 0.0]);
+        assert_eq!(res, [30, 1, 1]);
+        let res = auto_resolution(100_000_000, [1.0; 3]);
+        let cells: u64 = res.iter().map(|&r| r as u64).product();
+        assert!(cells <= MAX_CELLS, "{res:?}");
+        // an explicit resolution is capped by memory
+        let res = cap_cells([u32::MAX; 3], MAX_CELLS);
+        let cells: u64 = res.iter().map(|&r| r as u64).product();
+        assert!(cells <= MAX_CELLS && cells > MAX_CELLS / 2, "{res:?}");
+    }
+
+    #[test]
+    fn far_apart_triangles_build_small_and_hit() {
+        // A unit triangle at the origin with a small triangle at +-1e38 (extent 2e38) or
+        // at +-2e38 (the extent, 4e38, overflows f32). Before issue 13: 1024^3 cells.
+        let unit = tri([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        for at in [1e38f32, 2e38, -2e38] {
+            let far = |c: f32| {
+                let p = Vec3::splat(c);
+                [
+                    p,
+                    p + Vec3::new(c * 1e-3, 0.0, 0.0),
+                    p + Vec3::new(0.0, c * 1e-3, 0.0),
+                ]
+            };
+            let prims = Triangles::from_corners(&[unit, far(at), far(-at)]);
+            let g = Grid::build(prims.clone());
+            assert!(g.info.nodes as u64 <= max_cells(3), "{:?}", g.resolution());
+            let bf = BruteForce::new(prims);
+            let down = Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+            assert_eq!(g.closest_hit(&down).map(|h| (h.prim, h.t)), Some((0, 1.0)));
+            // Rays at the far triangles agree with brute force (which finds no hit: the
+            // f32 triangle test overflows on products of coordinates near 1e38).
+            for c in [at, -at] {
+                let target = Vec3::new(c + c * 2e-4, c + c * 2e-4, c);
+                for o in [Vec3::new(0.3, 0.2, 0.1), target + Vec3::Z * c.abs() * 1e-3] {
+                    let r = Ray::new(o, (target - o).normalize());
+                    assert_eq!(
+                        g.closest_hit(&r).map(|h| (h.prim, h.t)),
+                        bf.closest_hit(&r).map(|h| (h.prim, h.t)),
+                        "{o} -> {target}"
+                    );
+                    assert_eq!(g.any_hit(&r), bf.any_hit(&r));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn identical_triangles_choose_resolution_in_about_one_pass() {
+        // Every halving pass used to map all n primitives to cell ranges (4 passes here,
+        // 10 at n = 10^7); a pass over the budget now stops as soon as it is over.
+        let g = Grid::build(identical_triangles());
+        let n = 10_000u64;
+        assert!(
+            g.range_evaluations() < n + n / 2,
+            "{} range evaluations for {n} primitives",
+            g.range_evaluations()
+        );
+        hits_identical_triangles(&g);
+    }
 
     #[test]
     fn identical_triangles_bounded_memory() {

@@ -11,8 +11,8 @@
 //! within the assignment margin of the plane go to both children.
 
 use super::spatial::{
-    CountedTraversal, LeafSink, TraversalCounts, boxes_overlap, clip, conservative_pad, grown,
-    moves_along,
+    CountedTraversal, LeafSink, TraversalCounts, bounds_and_margins, boxes_overlap, clip, grown,
+    moves_along, region_margin,
 };
 use super::{AccelInfo, Primitives};
 use crate::geometry::{Aabb, RayQuery};
@@ -100,7 +100,8 @@ pub struct KdTree<P: Primitives> {
 struct Builder<'a, P: Primitives> {
     prims: &'a P,
     bounds: Vec<Aabb>,
-    pad: f32,
+    /// Assignment margin of each primitive ([`super::spatial::primitive_margin`]).
+    pads: Vec<f32>,
     opts: KdTreeOptions,
     max_depth: usize,
     nodes: Vec<KdNode>,
@@ -122,9 +123,14 @@ impl<P: Primitives> Builder<'_, P> {
         let n = ids.len();
         let inv_area = 1.0 / b.area().max(f32::MIN_POSITIVE);
         let mut best: Option<(f32, usize, f32)> = None;
+        // No split of a node narrower than four margins of its primitives.
+        let pad = ids
+            .iter()
+            .map(|&i| self.pads[i as usize])
+            .fold(0.0, f32::max);
         for a in 0..3 {
             let ext = b.max[a] - b.min[a];
-            if ext <= 4.0 * self.pad {
+            if ext <= 4.0 * pad {
                 continue;
             }
             let scale = nb as f32 / ext;
@@ -176,10 +182,11 @@ impl<P: Primitives> Builder<'_, P> {
         lb.max[axis] = split;
         rb.min[axis] = split;
         let side = |region: &Aabb| -> Vec<u32> {
-            let g = grown(region, self.pad);
+            let rm = region_margin(region);
             ids.iter()
                 .copied()
                 .filter(|&i| {
+                    let g = grown(region, self.pads[i as usize] + rm);
                     boxes_overlap(&self.bounds[i as usize], &g)
                         && self.prims.overlaps_box(i as usize, &g)
                 })
@@ -207,9 +214,8 @@ impl<P: Primitives> KdTree<P> {
     pub fn build_with(prims: P, opts: KdTreeOptions) -> Self {
         let start = Instant::now();
         let n = prims.count();
-        let bounds: Vec<Aabb> = (0..n).map(|i| prims.bounds(i)).collect();
+        let (bounds, pads, pad) = bounds_and_margins(&prims);
         let scene = bounds.iter().fold(Aabb::EMPTY, |b, p| b.union(p));
-        let pad = conservative_pad(&scene);
         let root = if n == 0 {
             Aabb::EMPTY
         } else {
@@ -219,7 +225,7 @@ impl<P: Primitives> KdTree<P> {
         let mut b = Builder {
             prims: &prims,
             bounds,
-            pad,
+            pads,
             opts,
             max_depth,
             nodes: vec![KdNode::leaf(0, 0)],

@@ -10,8 +10,8 @@
 //! triangles, would otherwise be copied into all eight children at every level).
 
 use super::spatial::{
-    CountedTraversal, LeafSink, TraversalCounts, boxes_overlap, clip, conservative_pad, grown,
-    moves_along,
+    CountedTraversal, LeafSink, TraversalCounts, bounds_and_margins, boxes_overlap, clip, grown,
+    moves_along, region_margin,
 };
 use super::{AccelInfo, Primitives};
 use crate::geometry::{Aabb, RayQuery};
@@ -61,7 +61,8 @@ pub struct Octree<P: Primitives> {
 struct Builder<'a, P: Primitives> {
     prims: &'a P,
     bounds: Vec<Aabb>,
-    pad: f32,
+    /// Assignment margin of each primitive ([`super::spatial::primitive_margin`]).
+    pads: Vec<f32>,
     opts: OctreeOptions,
     nodes: Vec<OctreeNode>,
     refs: Vec<u32>,
@@ -103,13 +104,15 @@ impl<P: Primitives> Builder<'_, P> {
         let mut total = 0usize;
         for c in 0..8 {
             let (clo, chi) = child_box(lo, hi, mid, c);
-            let region = grown(&Aabb::new(clo, chi), self.pad);
+            let region = Aabb::new(clo, chi);
+            let rm = region_margin(&region);
             let list: Vec<u32> = ids
                 .iter()
                 .copied()
                 .filter(|&i| {
-                    boxes_overlap(&self.bounds[i as usize], &region)
-                        && self.prims.overlaps_box(i as usize, &region)
+                    let g = grown(&region, self.pads[i as usize] + rm);
+                    boxes_overlap(&self.bounds[i as usize], &g)
+                        && self.prims.overlaps_box(i as usize, &g)
                 })
                 .collect();
             total += list.len();
@@ -147,9 +150,8 @@ impl<P: Primitives> Octree<P> {
     pub fn build_with(prims: P, opts: OctreeOptions) -> Self {
         let start = Instant::now();
         let n = prims.count();
-        let bounds: Vec<Aabb> = (0..n).map(|i| prims.bounds(i)).collect();
+        let (bounds, pads, pad) = bounds_and_margins(&prims);
         let scene = bounds.iter().fold(Aabb::EMPTY, |b, p| b.union(p));
-        let pad = conservative_pad(&scene);
         // A cube around the scene: a flat scene's plane is then split by the root's
         // middle plane only, not at every level (which would double its references each
         // level).
@@ -162,7 +164,7 @@ impl<P: Primitives> Octree<P> {
         let mut b = Builder {
             prims: &prims,
             bounds,
-            pad,
+            pads,
             opts,
             nodes: vec![OctreeNode { first: 0, count: 0 }],
             refs: Vec::new(),

@@ -6,6 +6,7 @@ pub mod merge;
 mod output;
 pub mod partial;
 mod pixel_sums;
+mod preflight;
 
 use crate::error::{Error, Result};
 use glam::Vec3;
@@ -15,6 +16,7 @@ pub use output::{
     write_atomic,
 };
 pub use pixel_sums::PixelSums;
+pub use preflight::check_output_paths;
 
 /// Linear RGB radiance per pixel, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]

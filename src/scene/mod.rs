@@ -8,6 +8,7 @@
 //! can reach the renderer.
 
 mod camera;
+mod checks;
 mod light;
 pub mod load;
 mod material;
@@ -15,6 +16,7 @@ mod motion;
 pub mod procedural;
 
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
+pub use checks::nothing_visible_warning;
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
 pub use motion::MotionSet;

@@ -41,7 +41,10 @@ pub fn load_obj_scene(path: &Path) -> Result<Scene> {
     print_warnings(&mesh.warnings);
     let mut b = SceneBuilder::new();
     add_obj_mesh(&mut b, &mesh, Mat4::IDENTITY, None);
-    let bounds = b.bounds();
+    // an empty mesh (issue 13) is framed as the unit cube around the origin
+    let bounds = Some(b.bounds())
+        .filter(|b| !b.is_empty())
+        .unwrap_or(crate::geometry::Aabb::new(-Vec3::ONE, Vec3::ONE));
     let c = bounds.center();
     let d = bounds.diagonal().max(f32::MIN_POSITIVE);
     let offset = d * Vec3::new(0.8, 1.2, 0.6);

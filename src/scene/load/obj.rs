@@ -132,11 +132,11 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh> {
         mesh.materials.push(Material::default());
     }
     if mesh.indices.is_empty() {
-        return Err(Error::input(
-            path,
-            0,
-            0,
-            "no triangles: expected `v` and `f` records",
+        // Not an error (issue 13): an empty scene is a valid scene, as it is from
+        // `SceneBuilder`; the render warns that only the background shows.
+        warnings.push(format!(
+            "{}: no triangles (no `f` records); loading an empty mesh",
+            path.display()
         ));
     }
     if !tobj_materials.is_empty() && default_id.is_some() {
