@@ -266,27 +266,16 @@ pub fn normal(t: &Triangles, i: usize) -> Vec3 {
         .normalize_or_zero()
 }
 
-/// The hit point rebuilt from barycentrics, as `SurfaceInteraction::new` does.
-pub fn hit_point(t: &Triangles, h: &Hit) -> Vec3 {
+/// The hit point rebuilt from barycentrics and its error bound, as
+/// `SurfaceInteraction::new` does.
+pub fn hit_point(t: &Triangles, h: &Hit) -> (Vec3, Vec3) {
     let i = h.prim as usize;
-    (1.0 - h.u - h.v) * t.v0[i] + h.u * t.v1[i] + h.v * t.v2[i]
+    packet_render::geometry::triangle_point([t.v0[i], t.v1[i], t.v2[i]], h.u, h.v)
 }
 
-/// Largest |coordinate| of triangle `i`: the scale `SurfaceInteraction` hands to
-/// `offset_ray_origin_scaled`.
-pub fn tri_scale(t: &Triangles, i: usize) -> f32 {
-    t.v0[i]
-        .abs()
-        .max(t.v1[i].abs())
-        .max(t.v2[i].abs())
-        .max_element()
-}
-
-/// A secondary-ray origin exactly as the integrator computes it.
+/// A secondary-ray origin exactly as the integrator computes it: the hit point offset
+/// by its error bound to the side of `n_leaving`.
 pub fn offset_origin(t: &Triangles, h: &Hit, n_leaving: Vec3) -> Vec3 {
-    packet_render::geometry::offset_ray_origin_scaled(
-        hit_point(t, h),
-        n_leaving,
-        tri_scale(t, h.prim as usize),
-    )
+    let (p, err) = hit_point(t, h);
+    packet_render::geometry::offset_ray_origin(p, err, n_leaving, n_leaving)
 }
