@@ -92,22 +92,38 @@ mod tests {
                 let o = offset_ray_origin(p, err, n, w);
                 // Along n (in f64, exactly) the origin lies beyond the box's extent.
                 let along = (o.as_dvec3() - p.as_dvec3()).dot(n.as_dvec3()) * sign;
-                assert!(along > box_extent as f64, "scale {s}: {along} <= {box_extent}");
+                assert!(
+                    along > box_extent as f64,
+                    "scale {s}: {along} <= {box_extent}"
+                );
                 // ... and not absurdly far: within 2 ulps plus twice the box.
                 assert!((o - p).length() <= 2.0 * box_extent + 4.0 * f32::EPSILON * p.length());
             }
         }
         // Zero error: the point is not moved.
-        assert_eq!(offset_ray_origin(Vec3::X, Vec3::ZERO, Vec3::Y, Vec3::Y), Vec3::X);
+        assert_eq!(
+            offset_ray_origin(Vec3::X, Vec3::ZERO, Vec3::Y, Vec3::Y),
+            Vec3::X
+        );
     }
 
     #[test]
     fn spawn_to_ends_short_of_the_offset_target() {
         let (p, q) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 3.0));
-        let r = spawn_ray_to(p, Vec3::splat(1e-7), Vec3::Y, q, Vec3::splat(1e-7), -Vec3::Y);
+        let r = spawn_ray_to(
+            p,
+            Vec3::splat(1e-7),
+            Vec3::Y,
+            q,
+            Vec3::splat(1e-7),
+            -Vec3::Y,
+        );
         assert!(r.origin.y > 0.0 && r.tmax < 1.0 && r.tmax > 0.99);
         let end = r.at(r.tmax);
-        assert!(end.y < q.y - 1e-7, "end {end} not short of the target plane");
+        assert!(
+            end.y < q.y - 1e-7,
+            "end {end} not short of the target plane"
+        );
         // Grazing: the margin grows as 1 / cos.
         let q2 = Vec3::new(0.0, 1e-3, 3.0);
         let r2 = spawn_ray_to(p, Vec3::ZERO, Vec3::Y, q2, Vec3::ZERO, -Vec3::Y);

@@ -49,10 +49,12 @@ pub(crate) mod err {
 ///   wrong sign: far from the origin or at grazing angles the shear alone (rounding of
 ///   `d_x / d_z` and of `s_x z`) moves a projected corner by more than the projected
 ///   triangle is wide, and a ray aimed at a triangle's centroid reported its neighbour.
-///   Such an edge is recomputed in f64 from the exactly translated corners with the f64
-///   shear `d_x / d_z`, which resolves it unless the ray passes within ~1e-15 relative
-///   of the edge. The recomputation of an edge reads only its two corners and the ray,
-///   so a shared edge gives both triangles the same (negated) value.
+///   Then all three edges are recomputed in f64 from the exactly translated corners
+///   with the f64 shear `d_x / d_z`, which resolves them unless the ray passes within
+///   ~1e-15 relative of an edge. The recomputation of an edge reads only its two
+///   corners and the ray, so a shared edge gives both triangles the same (negated)
+///   value; a certified f32 sign equals the exact sign, so a neighbour that kept f32
+///   for the shared edge agrees too (barring an exact value below the f64 noise).
 /// - **Exact division.** `t = t_scaled / det` is one correctly rounded quotient;
 ///   `t_scaled * (1 / det)` rounded twice and came out one ulp short, so a segment
 ///   whose `tmax` was exactly the hit distance reported the surface.
@@ -87,23 +89,14 @@ pub fn intersect_triangle(
     let mut v = ax * cy - ay * cx;
     let mut w = bx * ay - by * ax;
 
-    let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
-    let (su, sv, sw) = (
-        u.abs() <= delta_e,
-        v.abs() <= delta_e,
-        w.abs() <= delta_e,
-    );
-    if su || sv || sw {
-        let [e_u, e_v, e_w] = edges_f64(q, v0, v1, v2);
-        if su {
-            u = e_u;
-        }
-        if sv {
-            v = e_v;
-        }
-        if sw {
-            w = e_w;
-        }
+    let mut delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
+    if u.abs() <= delta_e || v.abs() <= delta_e || w.abs() <= delta_e {
+        // All three, as Woop et al. do for their exactly-zero case: then `t` and its
+        // bound rest on f64 edges only. Their error: the same bound in f64 units
+        // (`2^-29` of it, `2^-27` with slack) plus the final rounding to f32.
+        [u, v, w] = edges_f64(q, v0, v1, v2);
+        let max_e = u.abs().max(v.abs()).max(w.abs());
+        delta_e = gamma(1) * max_e + delta_e * F64_BOUND_RATIO;
     }
 
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
@@ -133,6 +126,9 @@ pub fn intersect_triangle(
         v: w * rcp,
     })
 }
+
+/// Ratio of the f64 to the f32 unit roundoff (`2^-29`), times 4 for slack.
+const F64_BOUND_RATIO: f32 = 1.0 / (1u64 << 27) as f32;
 
 /// `δE`: bound on the error of an f32 edge function against the same function of the
 /// exactly translated, exactly sheared corners (pbrt-v4 eq. 6.31, with the shear bound
@@ -326,7 +322,9 @@ mod tests {
                 let h1 = intersect_triangle(&qq, V0, V1, V2, f32::INFINITY);
                 let h2 = intersect_triangle(&qq, V1, v3, V2, f32::INFINITY);
                 match (h1, h2) {
-                    (None, None) => panic!("ray {o} + t {d} slipped through the shared edge at {e}"),
+                    (None, None) => {
+                        panic!("ray {o} + t {d} slipped through the shared edge at {e}")
+                    }
                     (Some(a), Some(b)) => assert_eq!(a.t, b.t),
                     _ => {}
                 }

@@ -108,7 +108,13 @@ impl Light {
                 let c = edge1.cross(edge2);
                 let area = c.length();
                 let err = gamma(32) * (corner.abs() + edge1.abs() + edge2.abs());
-                towards(corner + u * edge1 + v * edge2, c / area, area, radiance, err)
+                towards(
+                    corner + u * edge1 + v * edge2,
+                    c / area,
+                    area,
+                    radiance,
+                    err,
+                )
             }
             Light::Disk {
                 center,

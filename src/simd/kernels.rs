@@ -3,8 +3,8 @@
 //! never fuses a multiply and an add on its own, and neither do these kernels).
 
 use super::{F4, Lanes};
-use crate::geometry::{PrimHit, RayQuery, intersect_triangle};
 use crate::geometry::triangle_err as err;
+use crate::geometry::{PrimHit, RayQuery, intersect_triangle};
 use glam::Vec3;
 
 /// Four triangles of a leaf, structure-of-arrays: `v[corner][axis][lane]`.
@@ -88,7 +88,17 @@ pub fn triangle4_any(q: &RayQuery, g: &TriGroup4, tmax: f32) -> bool {
 /// order; `maxps` equals `f32::max` on the non-NaN values of valid lanes).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn edge_error_bound<L: Lanes>(ax: L, ay: L, bx: L, by: L, cx: L, cy: L, a_z: L, b_z: L, c_z: L) -> L {
+fn edge_error_bound<L: Lanes>(
+    ax: L,
+    ay: L,
+    bx: L,
+    by: L,
+    cx: L,
+    cy: L,
+    a_z: L,
+    b_z: L,
+    c_z: L,
+) -> L {
     let max_x = ax.abs().maxps(bx.abs()).maxps(cx.abs());
     let max_y = ay.abs().maxps(by.abs()).maxps(cy.abs());
     let max_z = a_z.abs().maxps(b_z.abs()).maxps(c_z.abs());
