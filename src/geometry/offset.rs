@@ -48,10 +48,11 @@ pub const SPAWN_TO_ERROR: f32 = gamma(64);
 /// rays: neither the surface it starts on nor the one it ends on can block it.
 ///
 /// The direction is `q' - o` unnormalised and the segment ends at parametric
-/// `tmax = 1 - ε`, `ε = SPAWN_TO_ERROR (|n_q|·|d|) / |n_q·d|`: the distance, measured
-/// along `n_q`, that covers the rounding of `d` and the error of `t` (both of order
-/// `|d|` along the ray, hence the division by the cosine). No tuned constant: a
-/// grazing segment ends proportionally earlier. A target without a surface (a point
+/// `tmax = 1 - ε`, `ε = SPAWN_TO_ERROR ‖d‖₁ / |n_q·d|`: the end stops
+/// `SPAWN_TO_ERROR ‖d‖₁` short of the target, measured along `n_q`, which covers the
+/// rounding of `d` and the error of `t` (both first order in the translated
+/// coordinates, `‖d‖` plus the target's extent, which its `q_error` carries). No tuned
+/// constant: a grazing segment ends proportionally earlier. A target without a surface (a point
 /// light) passes `q_error = 0` and `n_q` along the segment. A segment shorter than its
 /// own error bound is returned empty (`tmax = 0`): nothing can be resolved between its
 /// ends.
@@ -60,7 +61,7 @@ pub fn spawn_ray_to(p: Vec3, p_error: Vec3, n: Vec3, q: Vec3, q_error: Vec3, n_q
     let target = offset_ray_origin(q, q_error, n_q, p - q);
     let d = target - o;
     let cos = n_q.dot(d).abs();
-    let eps = SPAWN_TO_ERROR * n_q.abs().dot(d.abs()) / cos;
+    let eps = SPAWN_TO_ERROR * (d.x.abs() + d.y.abs() + d.z.abs()) / cos;
     let tmax = if eps < 1.0 { 1.0 - eps } else { 0.0 };
     Ray::segment(o, d, 0.0, tmax)
 }
