@@ -117,7 +117,9 @@ pub fn intersect_triangle(
         return None;
     }
     let rcp = 1.0 / det;
-    if !(t > t_error_bound(u, v, w, az, bz, cz, delta_e, rcp)) {
+    // As the SIMD twin's mask `t > δt`: a NaN bound rejects.
+    let certain = t > t_error_bound(u, v, w, az, bz, cz, delta_e, rcp);
+    if !certain {
         return None;
     }
     Some(PrimHit {
