@@ -538,8 +538,9 @@ fn shadow_segments_inside_a_closed_cube_are_unoccluded() {
 /// two, and then `t = Z` exactly. Checked here: segments between points on opposite
 /// faces of a cube of half-size `2^k` (the dominant component of `d = q - p` is exactly
 /// `2^(k+1)`, which makes `Z = 1`; the lateral ones are arbitrary) report `t == 1.0`
-/// exactly, and a segment with `tmax = 1.0` is unoccluded, on every path. With
-/// `t_scaled * (1/det)` some came out one ulp short.
+/// exactly, and a segment with `tmax = 1.0` is unoccluded, on every path. (This case
+/// held with `t_scaled * (1/det)` too; where `t` is not exact the division halved, not
+/// removed, the segments reported blocked: see docs/robustness.md.)
 #[test]
 fn segments_ending_exactly_on_a_face_are_unoccluded() {
     let mut report = Vec::new();
