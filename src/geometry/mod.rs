@@ -9,10 +9,11 @@ pub mod terminator;
 mod triangle;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
-pub use offset::{offset_ray_origin, offset_ray_origin_scaled, orthonormal_basis};
+pub use offset::{SPAWN_TO_ERROR, offset_ray_origin, orthonormal_basis, spawn_ray_to};
 pub use ray::{LaneRays, Ray, RayPacket, RayQuery};
-pub use sphere::intersect_sphere;
-pub use triangle::{PrimHit, intersect_triangle, intersect_triangle_f64};
+pub use sphere::{intersect_sphere, sphere_point};
+pub(crate) use triangle::err as triangle_err;
+pub use triangle::{PrimHit, gamma, intersect_triangle, intersect_triangle_f64, triangle_point};
 
 /// A closest hit inside one primitive set: distance, primitive index and the
 /// barycentric coordinates of the hit (`u`, `v` weight the second and third vertex;

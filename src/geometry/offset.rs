@@ -1,51 +1,69 @@
+use super::Ray;
+use super::triangle::gamma;
 use glam::Vec3;
 
-/// Offsets a surface point along the geometric normal so that a secondary ray started
-/// there cannot re-hit the surface it leaves (Wächter & Binder, "A Fast and Robust
-/// Method for Avoiding Self-Intersection", Ray Tracing Gems ch. 6), for a primitive of
-/// unit scale: [`offset_ray_origin_scaled`] with `scale = 1`.
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
-    offset_ray_origin_scaled(p, n, 1.0)
+/// Moves a surface point off its surface so that a ray leaving it in direction `w`
+/// cannot re-hit that surface (pbrt-v4 `OffsetRayOrigin`, Pharr, Jakob, Humphreys
+/// §6.8.6).
+///
+/// `p_error` bounds, per component, how far the computed `p` may lie from the true
+/// surface (the box `p ± p_error` contains a point of the surface); `n` is the unit
+/// geometric normal. The point moves along `±n` (towards the side `w` leaves into) by
+/// `d = |n|·p_error`, the extent of that box along `n`, so the new origin lies outside
+/// the box on the right side of the surface. Each moved coordinate is then rounded one
+/// float further away from `p`, so the rounding of `p + offset` cannot eat the offset.
+/// `d` is enlarged by `γ(8)` for the rounding of the dot product and of `n` itself.
+///
+/// An exact point (`p_error = 0`, e.g. on an axis-aligned plane through the origin)
+/// is not moved: the triangle test's conservative `t > δt` rejects the surface the ray
+/// starts on (see `intersect_triangle`).
+#[inline]
+pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.abs().dot(p_error) * (1.0 + gamma(8));
+    let mut offset = d * n;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let mut po = p + offset;
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = po[i].next_up();
+        } else if offset[i] < 0.0 {
+            po[i] = po[i].next_down();
+        }
+    }
+    po
 }
 
-/// Wächter-Binder offset for a hit point computed from coordinates of magnitude
-/// `scale` (the largest |coordinate| of the triangle's corners, or of a sphere's centre
-/// plus its radius).
+/// Relative error bound used to end a segment short of its target: the end point
+/// `o + d` misses the offset target by the rounding of `d = target - o` (`u |d|`), and
+/// the triangle test's `t` carries the error of translating and shearing the target's
+/// corners, a few dozen roundings of the translated coordinates (`δt` of
+/// `intersect_triangle`, first order). `γ(64)` covers both with a factor two to spare.
+pub const SPAWN_TO_ERROR: f32 = gamma(64);
+
+/// A segment from the surface point `p` (error `p_error`, unit geometric normal `n`)
+/// to the surface point `q` (error `q_error`, unit normal `n_q`), offset at both ends
+/// by [`offset_ray_origin`] (pbrt-v4 `SpawnRayTo` for two interactions), for shadow
+/// rays: neither the surface it starts on nor the one it ends on can block it.
 ///
-/// Far from the origin the offset is a fixed number of units in the last place of each
-/// coordinate (integer arithmetic on the float bits), so it scales with the magnitude of
-/// the coordinates. Near the origin, where ulps of the point become tiny but the
-/// rounding error of the point does not (it is a few ulps of the *inputs*), a small
-/// absolute offset takes over. The paper fixes that offset and the near-origin region
-/// for scenes of unit scale (1/65536 within 1/32 of the origin), which pushes the origin
-/// of a refracted ray straight through anything smaller than about 1e-5 near the
-/// origin; both are therefore proportional to `scale` here. `n` must point to the side
-/// the new ray leaves into (flip it for refraction).
-pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, scale: f32) -> Vec3 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
-    const INT_SCALE: f32 = 256.0;
-    // A zero, subnormal or non-finite scale (degenerate primitive) falls back to the
-    // smallest normal magnitude: the offset is then the integer one almost everywhere.
-    let scale = if scale.is_finite() {
-        scale.max(f32::MIN_POSITIVE)
-    } else {
-        1.0
-    };
-    let (origin, float_scale) = (ORIGIN * scale, FLOAT_SCALE * scale);
-    let mut out = Vec3::ZERO;
-    for i in 0..3 {
-        let of_i = (INT_SCALE * n[i]) as i32;
-        let bits = p[i].to_bits() as i32;
-        let moved = if p[i] < 0.0 { bits - of_i } else { bits + of_i };
-        let p_i = f32::from_bits(moved as u32);
-        out[i] = if p[i].abs() < origin {
-            p[i] + float_scale * n[i]
-        } else {
-            p_i
-        };
-    }
-    out
+/// The direction is `q' - o` unnormalised and the segment ends at parametric
+/// `tmax = 1 - ε`, `ε = SPAWN_TO_ERROR ‖d‖₁ / |n_q·d|`: the end stops
+/// `SPAWN_TO_ERROR ‖d‖₁` short of the target, measured along `n_q`, which covers the
+/// rounding of `d` and the error of `t` (both first order in the translated
+/// coordinates, `‖d‖` plus the target's extent, which its `q_error` carries). No tuned
+/// constant: a grazing segment ends proportionally earlier. A target without a surface (a point
+/// light) passes `q_error = 0` and `n_q` along the segment. A segment shorter than its
+/// own error bound is returned empty (`tmax = 0`): nothing can be resolved between its
+/// ends.
+pub fn spawn_ray_to(p: Vec3, p_error: Vec3, n: Vec3, q: Vec3, q_error: Vec3, n_q: Vec3) -> Ray {
+    let o = offset_ray_origin(p, p_error, n, q - p);
+    let target = offset_ray_origin(q, q_error, n_q, p - q);
+    let d = target - o;
+    let cos = n_q.dot(d).abs();
+    let eps = SPAWN_TO_ERROR * (d.x.abs() + d.y.abs() + d.z.abs()) / cos;
+    let tmax = if eps < 1.0 { 1.0 - eps } else { 0.0 };
+    Ray::segment(o, d, 0.0, tmax)
 }
 
 /// Branch-free orthonormal basis around a unit vector (Duff et al., JCGT 2017).
@@ -65,42 +83,52 @@ mod tests {
     use super::*;
 
     #[test]
-    fn offset_moves_to_the_normal_side_at_all_scales() {
+    fn offset_leaves_the_error_box_on_the_side_of_w() {
         let n = Vec3::new(0.3, -0.8, 0.5).normalize();
-        for s in [1e-6f32, 1e-3, 1.0, 1e3, 1e6, 1e7] {
-            for p in [Vec3::splat(s), Vec3::new(-s, s, -s), Vec3::new(s, 0.0, -s)] {
-                let o = offset_ray_origin(p, n);
-                assert!((o - p).dot(n) > 0.0, "scale {s}: offset not along n");
+        for s in [1e-30f32, 1e-6, 1.0, 1e6, 1e30] {
+            let p = Vec3::new(s, -2.0 * s, 0.5 * s);
+            let err = gamma(7) * p.abs();
+            let box_extent = n.abs().dot(err);
+            for (w, sign) in [(n, 1.0), (-n, -1.0)] {
+                let o = offset_ray_origin(p, err, n, w);
+                // Along n (in f64, exactly) the origin lies beyond the box's extent.
+                let along = (o.as_dvec3() - p.as_dvec3()).dot(n.as_dvec3()) * sign;
                 assert!(
-                    (o - p).length() <= 1e-3 * p.length().max(1.0),
-                    "scale {s}: offset too large"
+                    along > box_extent as f64,
+                    "scale {s}: {along} <= {box_extent}"
                 );
+                // ... and not absurdly far: within 2 ulps plus twice the box.
+                assert!((o - p).length() <= 2.0 * box_extent + 4.0 * f32::EPSILON * p.length());
             }
         }
+        // Zero error: the point is not moved.
+        assert_eq!(
+            offset_ray_origin(Vec3::X, Vec3::ZERO, Vec3::Y, Vec3::Y),
+            Vec3::X
+        );
     }
 
     #[test]
-    fn scaled_offset_stays_inside_tiny_geometry_near_the_origin() {
-        // Regression: a 1e-6 cube at the origin. The unit-scale offset (1/65536) moves a
-        // refraction origin 15 cube widths past the far face; scaled, it stays inside.
-        let p = Vec3::new(3e-7, -1e-6, 2e-7);
-        let inward = Vec3::new(0.0, 1.0, 0.0);
-        let unit = offset_ray_origin(p, inward);
-        assert!(
-            unit.y > 1e-6,
-            "unit-scale offset no longer leaves the cube: {unit}"
+    fn spawn_to_ends_short_of_the_offset_target() {
+        let (p, q) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 3.0));
+        let r = spawn_ray_to(
+            p,
+            Vec3::splat(1e-7),
+            Vec3::Y,
+            q,
+            Vec3::splat(1e-7),
+            -Vec3::Y,
         );
-        let o = offset_ray_origin_scaled(p, inward, 1e-6);
-        assert!(o.y > p.y && o.y < -0.99e-6, "scaled offset {o}");
-        // Scale 1 is the paper's offset, bit for bit.
-        let n = Vec3::new(0.3, -0.8, 0.5).normalize();
-        for q in [Vec3::splat(0.01), Vec3::new(-3.0, 0.001, 7.0)] {
-            assert_eq!(offset_ray_origin(q, n), offset_ray_origin_scaled(q, n, 1.0));
-        }
-        // Degenerate scales never produce NaN.
-        for s in [0.0, -1.0, f32::NAN, f32::INFINITY] {
-            assert!(offset_ray_origin_scaled(p, n, s).is_finite());
-        }
+        assert!(r.origin.y > 0.0 && r.tmax < 1.0 && r.tmax > 0.99);
+        let end = r.at(r.tmax);
+        assert!(
+            end.y < q.y - 1e-7,
+            "end {end} not short of the target plane"
+        );
+        // Grazing: the margin grows as 1 / cos.
+        let q2 = Vec3::new(0.0, 1e-3, 3.0);
+        let r2 = spawn_ray_to(p, Vec3::ZERO, Vec3::Y, q2, Vec3::ZERO, -Vec3::Y);
+        assert!(1.0 - r2.tmax > 100.0 * (1.0 - r.tmax));
     }
 
     #[test]

@@ -1,4 +1,5 @@
 use super::RayQuery;
+use super::triangle::gamma;
 use glam::Vec3;
 
 /// Ray/sphere intersection, numerically stable (Haines, Günther, Akenine-Möller,
@@ -38,6 +39,20 @@ pub fn intersect_sphere(q: &RayQuery, center: Vec3, radius: f32, tmax: f32) -> O
     } else {
         None
     }
+}
+
+/// A hit point on a sphere: `near` (e.g. `o + t d`, which carries the error of `t`
+/// scaled by the ray length) reprojected onto the sphere as `center + radius n`,
+/// `n = normalize(near - center)`, with a per-component bound on its distance from the
+/// sphere: `γ(5) |radius n|` for the reprojection (pbrt-v4 §6.8.5) plus `γ(2) |p|` for
+/// adding the centre. Returns `(p, p_error, n)`; `n` is zero if `near` is the centre.
+#[inline]
+pub fn sphere_point(center: Vec3, radius: f32, near: Vec3) -> (Vec3, Vec3, Vec3) {
+    let n = (near - center).normalize_or_zero();
+    let local = radius * n;
+    let p = center + local;
+    let err = gamma(5) * local.abs() + gamma(2) * p.abs();
+    (p, err, n)
 }
 
 #[cfg(test)]

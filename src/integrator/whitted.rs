@@ -37,7 +37,7 @@ use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind, shadow};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::{Film, PixelSums, partial};
 use crate::geometry::terminator::shadow_terminator_point;
-use crate::geometry::{Ray, offset_ray_origin_scaled};
+use crate::geometry::{Ray, offset_ray_origin, spawn_ray_to, sphere_point, triangle_point};
 use crate::scene::{CameraFrame, LensFrame, Light, Scene, TriangleMesh};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
@@ -371,13 +371,14 @@ pub(crate) fn resolve_pixel(
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfaceInteraction {
     pub p: Vec3,
+    /// Per-component bound on the distance of `p` from the true surface (the box
+    /// `p ± p_error` contains a surface point): what every secondary ray origin is
+    /// offset by ([`offset_ray_origin`], [`spawn_ray_to`]).
+    pub p_error: Vec3,
     pub n_geometric: Vec3,
     pub n_shading: Vec3,
     pub material: u32,
     pub front_face: bool,
-    /// Largest |coordinate| of the primitive (corners, or centre plus radius): the
-    /// scale of the rounding error of `p`, which sizes the offset of secondary origins.
-    pub scale: f32,
     /// On a triangle with vertex normals, the base point of its shadow rays: `p`
     /// lifted onto the smooth surface the normals describe ([`shadow_terminator_point`],
     /// Hanika 2021), so that a coarse mesh shaded smooth neither shadows itself in
@@ -390,30 +391,33 @@ pub struct SurfaceInteraction {
 impl SurfaceInteraction {
     /// The hit point is rebuilt from the primitive, not as `o + t d`: `t` carries the
     /// rounding error of the whole intersection test scaled by the ray length, whereas
-    /// barycentric interpolation of the corners (or centre + radius * normal for a
-    /// sphere) lands within a few ulps of the surface, which is what the
-    /// Wächter-Binder offset of the next ray origin is sized for.
+    /// barycentric interpolation of the corners ([`triangle_point`]) or reprojection
+    /// onto a sphere ([`sphere_point`]) lands within a bound of the surface that is
+    /// computed with the point and kept in `p_error` (pbrt-v4's `Point3fi`).
+    ///
+    /// Moving primitives are placed at the ray's time exactly as the intersection
+    /// kernels place them (`v + time * velocity`, the same f32 operations), and a ray
+    /// spawned here keeps that time, so the error is relative to the placed corners
+    /// (or centre): placing them adds nothing the next ray does not see identically.
     pub fn new(scene: &Scene, ray: &Ray, hit: &SceneHit) -> Self {
-        // Moving primitives are placed at the ray's time; translation leaves normals
-        // unchanged, so both kinds of triangle (and of sphere) share one rule.
-        // The last element: corners and vertex normals, for the shadow-ray base point.
-        let on_triangle = |mesh: &TriangleMesh, t: usize, [a, b, c]: [Vec3; 3]| {
-            let p = (1.0 - hit.u - hit.v) * a + hit.u * b + hit.v * c;
-            let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
+        // Translation leaves normals unchanged, so both kinds of triangle (and of
+        // sphere) share one rule. The last element: corners and vertex normals, for the
+        // shadow-ray base point.
+        let on_triangle = |mesh: &TriangleMesh, t: usize, corners: [Vec3; 3]| {
+            let (p, p_error) = triangle_point(corners, hit.u, hit.v);
             let (ng, ns) = (
                 mesh.geometric_normal(t),
                 mesh.shading_normal(t, hit.u, hit.v),
             );
-            let smooth = mesh.vertex_normals(t).map(|n| ([a, b, c], n));
-            (p, ng, ns, mesh.material[t], scale, smooth)
+            let smooth = mesh.vertex_normals(t).map(|n| (corners, n));
+            (p, p_error, ng, ns, mesh.material[t], smooth)
         };
         let on_sphere = |center: Vec3, radius: f32, material: u32| {
-            let n = (ray.at(hit.t) - center).normalize_or_zero();
-            let scale = center.abs().max_element() + radius;
-            (center + radius * n, n, n, material, scale, None)
+            let (p, p_error, n) = sphere_point(center, radius, ray.at(hit.t));
+            (p, p_error, n, n, material, None)
         };
         let (motion, spheres) = (&scene.motion, &scene.spheres);
-        let (p, ng, ns, material, scale, smooth) = match hit.prim {
+        let (p, p_error, ng, ns, material, smooth) = match hit.prim {
             PrimRef::Triangle(t) => {
                 on_triangle(&scene.mesh, t as usize, scene.mesh.corners(t as usize))
             }
@@ -451,11 +455,11 @@ impl SurfaceInteraction {
         });
         SurfaceInteraction {
             p,
+            p_error,
             n_geometric: ng,
             n_shading: ns,
             material,
             front_face,
-            scale,
             p_shadow,
         }
     }
@@ -519,16 +523,6 @@ pub fn dielectric(d: Vec3, n: Vec3, eta_i: f32, eta_t: f32) -> DielectricScatter
 /// Tile edge in pixels: 256 pixels amortise rayon's per-task cost while leaving many
 /// tiles per thread for load balance on uneven scenes.
 pub(crate) const TILE: u32 = 16;
-
-/// Shadow rays to a point light stop this fraction short of it, so that geometry the
-/// light sits on (a lamp on a ceiling) does not shadow it through rounding of `t`.
-/// Relative, like the error of `t` itself: no scene-scale epsilon.
-const SHADOW_TMAX_SCALE: f32 = 1.0 - 16.0 * f32::EPSILON;
-
-/// Shadow rays to a point on an area light stop this fraction short of it: the light's
-/// own emissive geometry lies there (a disk light's 64-gon even slightly off the true
-/// disk), and must not shadow its own samples.
-const AREA_SHADOW_TMAX_SCALE: f32 = 1.0 - 1e-4;
 
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Tile {
@@ -673,7 +667,7 @@ impl Shader<'_> {
             } else {
                 -si.n_geometric
             };
-            let albedo = m.albedo_on_surface(si.p, outward, si.scale);
+            let albedo = m.albedo_on_surface(si.p, si.p_error, outward);
             out.local += scene.ambient * albedo;
             self.direct(
                 -d,
@@ -691,7 +685,9 @@ impl Shader<'_> {
         if depth >= self.max_depth {
             return;
         }
-        let origin_out = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
+        // Every reflected and glossy direction leaves on the facing side (checked
+        // below), so one origin serves them all.
+        let origin_out = offset_ray_origin(si.p, si.p_error, si.n_geometric, si.n_geometric);
         let push = |out: &mut Emitted, kind, dir, origin, weight, throughput| {
             let branch = out.children.len() as u32;
             let mut ray = Ray::new(origin, dir);
@@ -777,7 +773,8 @@ impl Shader<'_> {
                 if tp.max_element() >= self.min_contribution && weight != Vec3::ZERO {
                     // Refraction leaves into the far side: offset against the facing
                     // normal.
-                    let origin = offset_ray_origin_scaled(si.p, -si.n_geometric, si.scale);
+                    let origin =
+                        offset_ray_origin(si.p, si.p_error, si.n_geometric, -si.n_geometric);
                     if m.is_translucent() {
                         let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
                         let w = weight / n as f32;
@@ -843,14 +840,14 @@ impl Shader<'_> {
         drawn: &mut EffectSamplesDrawn,
     ) {
         let m = &self.scene.materials[si.material as usize];
-        let origin =
-            offset_ray_origin_scaled(si.p_shadow.unwrap_or(si.p), si.n_geometric, si.scale);
         // A light below the shading normal's horizon contributes nothing, and neither
         // does one below the true surface, unless the surface is a smooth-shaded mesh:
         // there the facet is only an approximation, and the shadow ray from the lifted
         // origin decides (Hanika 2021). No shadow ray for a light that contributes
-        // nothing.
+        // nothing. Shadow rays leave from the lifted point where there is one, offset by
+        // the hit point's error bound.
         let smooth = si.p_shadow.is_some();
+        let base = si.p_shadow.unwrap_or(si.p);
         let reflectance = |wi: Vec3| {
             let cos_s = wi.dot(si.n_shading);
             if !(cos_s > 0.0 && (smooth || wi.dot(si.n_geometric) > 0.0)) {
@@ -863,8 +860,10 @@ impl Shader<'_> {
             }
             Some(f)
         };
-        let mut shadow = |out: &mut Emitted, dir, tmax, contribution, light| {
-            let mut ray = Ray::segment(origin, dir, 0.0, tmax);
+        // Shadow rays end at their target by the error-bound rule of `spawn_ray_to`
+        // (both ends offset, the end short by a bound on the rounding of the segment),
+        // never by a tuned fraction of the distance.
+        let mut shadow = |out: &mut Emitted, mut ray: Ray, contribution, light| {
             ray.time = time;
             rays.shadow += 1;
             out.shadow.push(ShadowRay {
@@ -875,20 +874,38 @@ impl Shader<'_> {
         };
         for (index, light) in self.scene.lights.iter().enumerate() {
             let index = index as u32;
-            let (wi, tmax, irradiance) = match *light {
+            match *light {
                 Light::Point {
                     position,
                     intensity,
                 } => {
-                    let to_light = position - origin;
+                    // A point light is exact and has no surface: the segment's end
+                    // is only short by the rounding margin, along the segment.
+                    let to_light = position - si.p;
                     let dist2 = to_light.length_squared();
-                    let dist = dist2.sqrt();
-                    (to_light / dist, dist * SHADOW_TMAX_SCALE, intensity / dist2)
+                    let wi = to_light / dist2.sqrt();
+                    if let Some(f) = reflectance(wi) {
+                        let ray = spawn_ray_to(
+                            base,
+                            si.p_error,
+                            si.n_geometric,
+                            position,
+                            Vec3::ZERO,
+                            -wi,
+                        );
+                        shadow(out, ray, intensity / dist2 * f, index);
+                    }
                 }
                 Light::Directional {
                     direction,
                     irradiance,
-                } => (-direction.normalize(), f32::INFINITY, irradiance),
+                } => {
+                    let wi = -direction.normalize();
+                    if let Some(f) = reflectance(wi) {
+                        let o = offset_ray_origin(base, si.p_error, si.n_geometric, wi);
+                        shadow(out, Ray::new(o, wi), irradiance * f, index);
+                    }
+                }
                 _ => {
                     // The mean over `shadow` stratified points of the light of
                     // `f · L dω / pdf`.
@@ -905,21 +922,24 @@ impl Shader<'_> {
                     );
                     drawn.light += n as u64;
                     for &(u, v) in &points {
-                        let Some(s) = light.sample(origin, u, v) else {
+                        let Some(s) = light.sample(si.p, u, v) else {
                             continue;
                         };
                         let Some(f) = reflectance(s.wi) else {
                             continue;
                         };
-                        let tmax = s.dist * AREA_SHADOW_TMAX_SCALE;
-                        shadow(out, s.wi, tmax, s.weight * f / n as f32, index);
+                        let ray = spawn_ray_to(
+                            base,
+                            si.p_error,
+                            si.n_geometric,
+                            s.point,
+                            s.p_error,
+                            s.normal,
+                        );
+                        shadow(out, ray, s.weight * f / n as f32, index);
                     }
                     out.points = points;
-                    continue;
                 }
-            };
-            if let Some(f) = reflectance(wi) {
-                shadow(out, wi, tmax, irradiance * f, index);
             }
         }
     }

@@ -1,3 +1,4 @@
+use crate::geometry::{gamma, sphere_point};
 use crate::integrator::sampling::concentric_disk;
 use glam::Vec3;
 use std::f32::consts::{PI, TAU};
@@ -48,6 +49,14 @@ pub struct LightSample {
     /// irradiance-like factor `∫ L dω` that multiplies `f · cosθ` (the same role as
     /// `intensity / r²` for a point light).
     pub weight: Vec3,
+    /// The sampled point on the light.
+    pub point: Vec3,
+    /// Per-component bound on the distance of `point` from the light's emissive
+    /// geometry, so that a shadow segment ending there can be ended short of it
+    /// ([`spawn_ray_to`](crate::geometry::spawn_ray_to)).
+    pub p_error: Vec3,
+    /// Unit normal of the light at `point`, on its emitting side.
+    pub normal: Vec3,
 }
 
 impl Light {
@@ -64,8 +73,16 @@ impl Light {
     /// are sampled uniformly by area (pdf `1/A`, converted to solid angle by
     /// `cosθ' / r²`); spheres uniformly inside the cone they subtend (pdf
     /// `1 / (2π (1 - cosθmax))`), so no sample is wasted on the far side.
+    ///
+    /// `p_error` of a quad or disk sample: `γ(32)` times the magnitudes that form the
+    /// point and the corners of the emissive triangles (corner and edges; centre and
+    /// radius times the basis). The point itself rounds within `γ(3)` of the light's
+    /// plane and the corners within `γ(4)`; the rest covers the triangle test's error on
+    /// corners up to the light's size away from the point, which `spawn_ray_to`'s
+    /// margin (proportional to the segment length) does not see. A sphere sample is
+    /// reprojected onto the sphere ([`sphere_point`](crate::geometry::sphere_point)).
     pub fn sample(&self, p: Vec3, u: f32, v: f32) -> Option<LightSample> {
-        let towards = |point: Vec3, n: Vec3, area: f32, radiance: Vec3| {
+        let towards = |point: Vec3, n: Vec3, area: f32, radiance: Vec3, p_error: Vec3| {
             let to = point - p;
             let dist2 = to.length_squared();
             let dist = dist2.sqrt();
@@ -75,6 +92,9 @@ impl Light {
                 wi,
                 dist,
                 weight: radiance * (cos_l * area / dist2),
+                point,
+                p_error,
+                normal: n,
             })
         };
         match *self {
@@ -87,7 +107,14 @@ impl Light {
             } => {
                 let c = edge1.cross(edge2);
                 let area = c.length();
-                towards(corner + u * edge1 + v * edge2, c / area, area, radiance)
+                let err = gamma(32) * (corner.abs() + edge1.abs() + edge2.abs());
+                towards(
+                    corner + u * edge1 + v * edge2,
+                    c / area,
+                    area,
+                    radiance,
+                    err,
+                )
             }
             Light::Disk {
                 center,
@@ -98,11 +125,13 @@ impl Light {
                 let n = normal.normalize();
                 let (t, b) = crate::geometry::orthonormal_basis(n);
                 let d = concentric_disk(u, v) * radius;
+                let err = gamma(32) * (center.abs() + radius * (t.abs() + b.abs()));
                 towards(
                     center + d.x * t + d.y * b,
                     n,
                     PI * radius * radius,
                     radiance,
+                    err,
                 )
             }
             Light::Sphere {
@@ -131,10 +160,14 @@ impl Light {
                 let proj = wi.dot(to_c);
                 let disc = radius * radius - (dc2 - proj * proj);
                 let dist = proj - disc.max(0.0).sqrt();
+                let (point, p_error, normal) = sphere_point(center, radius, p + dist * wi);
                 Some(LightSample {
                     wi,
                     dist,
                     weight: radiance * (TAU * one_minus),
+                    point,
+                    p_error,
+                    normal,
                 })
             }
         }

@@ -29,11 +29,12 @@ pub struct Material {
     pub translucency_exponent: f32,
 }
 
-/// How far inside the surface, relative to the magnitude of the hit point's coordinates,
-/// [`Material::albedo_on_surface`] looks up a solid texture: 64 ulps of 1. The
-/// barycentric hit point is within about 4 ulps of the true surface, the division by
-/// the cell size adds 1, and a vertex typed as a decimal ("0.3") sits within an ulp of
-/// the boundary it was meant for; 64 leaves a factor of about 8 over their sum.
+/// How far inside the surface, beyond the hit point's own error bound and relative to
+/// the magnitude of its coordinates, [`Material::albedo_on_surface`] looks up a solid
+/// texture: 64 ulps of 1. The error bound already puts the lookup point on the inside
+/// whatever the rounding of the hit point; this margin adds the division by the cell
+/// size (1 ulp) and a vertex typed as a decimal ("0.3"), which sits within an ulp of the
+/// boundary it was meant for, with a factor of about 8 to spare.
 pub const CHECKER_INSET: f32 = 64.0 * f32::EPSILON;
 
 /// A 3D checkerboard: `color_a`/`color_b` alternate in cubes of edge `scale` (solid
@@ -118,23 +119,26 @@ impl Material {
     }
 
     /// Diffuse albedo at a hit point `p` on a surface with outward (winding) normal
-    /// `outward`, where `scale` bounds the magnitude of the coordinates `p` was computed
-    /// from (the hit point's rounding error is a few ulps of it).
+    /// `outward`, where `p_error` bounds the rounding error of `p` per component (the
+    /// hit point's error box, pbrt-v4's `Point3fi`).
     ///
     /// The solid checkerboard `floor(p / scale)` is discontinuous on every cell
     /// boundary. A surface lying exactly on one (a floor at y = 1 with cells of 0.5)
     /// would flip between the two cells on the rounding noise of each hit point: salt
     /// and pepper. The texture is therefore looked up at a point moved *inside* the
-    /// surface by [`CHECKER_INSET`] times `scale`, well above that noise: a surface on a
+    /// surface by twice its error bound `p_error` along the normal plus [`CHECKER_INSET`]
+    /// times its magnitude, well above that noise: a surface on a
     /// boundary takes the cell behind it, the same from either side and for every
     /// pixel, and a surface crossing boundaries moves its checker edges by that inset
     /// (a few 1e-6 of the scene's scale), which no pixel shows.
-    pub fn albedo_on_surface(&self, p: Vec3, outward: Vec3, scale: f32) -> Vec3 {
+    pub fn albedo_on_surface(&self, p: Vec3, p_error: Vec3, outward: Vec3) -> Vec3 {
         if self.checker.is_none() {
             return self.diffuse;
         }
-        let scale = scale.max(p.abs().max_element());
-        self.albedo_at(p - outward * (CHECKER_INSET * scale))
+        // The extent of the error box along the normal (pbrt-v4's offset distance),
+        // twice: the lookup point lies beyond the box on the inside.
+        let inset = 2.0 * outward.abs().dot(p_error) + CHECKER_INSET * p.abs().max_element();
+        self.albedo_at(p - outward * inset)
     }
 
     pub fn validate(&self) -> Result<(), String> {

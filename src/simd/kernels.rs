@@ -3,6 +3,7 @@
 //! never fuses a multiply and an add on its own, and neither do these kernels).
 
 use super::{F4, Lanes};
+use crate::geometry::triangle_err as err;
 use crate::geometry::{PrimHit, RayQuery, intersect_triangle};
 use glam::Vec3;
 
@@ -83,6 +84,42 @@ pub fn triangle4_any(q: &RayQuery, g: &TriGroup4, tmax: f32) -> bool {
     triangle4(q, g, tmax).3 != 0
 }
 
+/// Lane twin of `geometry::triangle`'s `edge_error_bound` (same operations, same
+/// order; `maxps` equals `f32::max` on the non-NaN values of valid lanes).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn edge_error_bound<L: Lanes>(
+    ax: L,
+    ay: L,
+    bx: L,
+    by: L,
+    cx: L,
+    cy: L,
+    a_z: L,
+    b_z: L,
+    c_z: L,
+) -> L {
+    let max_x = ax.abs().maxps(bx.abs()).maxps(cx.abs());
+    let max_y = ay.abs().maxps(by.abs()).maxps(cy.abs());
+    let max_z = a_z.abs().maxps(b_z.abs()).maxps(c_z.abs());
+    let two_z = max_z + max_z;
+    let delta_x = L::splat(err::SHEAR) * (max_x + two_z);
+    let delta_y = L::splat(err::SHEAR) * (max_y + two_z);
+    L::splat(2.0) * (L::splat(err::EDGE) * max_x * max_y + delta_y * max_x + delta_x * max_y)
+}
+
+/// Lane twin of `geometry::triangle`'s `t_error_bound`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn t_error_bound<L: Lanes>(u: L, v: L, w: L, az: L, bz: L, cz: L, delta_e: L, rcp: L) -> L {
+    let max_zt = az.abs().maxps(bz.abs()).maxps(cz.abs());
+    let max_e = u.abs().maxps(v.abs()).maxps(w.abs());
+    let delta_z = L::splat(err::DEPTH) * max_zt;
+    L::splat(3.0)
+        * (L::splat(err::DEPTH) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
+        * rcp.abs()
+}
+
 /// The lane-parallel watertight test: distances, barycentrics and the hit bits.
 #[inline(always)]
 fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f32; 4], u32) {
@@ -113,27 +150,33 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
     let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
     let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
     let valid = g.valid_bits();
-    let edge = (u.eq(zero) | v.eq(zero) | w.eq(zero)).bitmask() & valid;
+    // Lanes with an edge function within its error bound of zero: the scalar test
+    // redoes those edges in f64.
+    let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
+    let edge = (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & valid;
     if !(neg & pos).bitmask() & valid & !edge == 0 && edge == 0 {
         // every lane is outside its triangle: skip the division
         return ([0.0; 4], [0.0; 4], [0.0; 4], 0);
     }
     let det = u + v + w;
-    let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
+    let (az, bz, cz) = (sz * a_z, sz * b_z, sz * c_z);
+    let t_scaled = u * az + v * bz + w * cz;
+    let t = t_scaled / det;
     let rcp = F4::splat(1.0) / det;
-    let t = t_scaled * rcp;
+    let delta_t = t_error_bound(u, v, w, az, bz, cz, delta_e, rcp);
     let ok = !(neg & pos).bitmask()
         & !det.eq(zero).bitmask()
         & det.is_finite().bitmask()
         & t.gt(F4::splat(q.tmin)).bitmask()
-        & t.lt(F4::splat(tmax)).bitmask();
+        & t.lt(F4::splat(tmax)).bitmask()
+        & t.gt(delta_t).bitmask();
 
     let mut bits = ok & valid;
     let mut t = t.to_array();
     let mut bu = (v * rcp).to_array();
     let mut bv = (w * rcp).to_array();
 
-    // An edge function exactly zero: the scalar test redoes it in f64 (Woop et al. §4).
+    // An uncertain edge function: the scalar test redoes it in f64.
     if edge != 0 {
         edge_lanes(q, g, tmax, edge, &mut bits, &mut t, &mut bu, &mut bv);
     }
@@ -187,8 +230,9 @@ pub struct PacketShear<L: Lanes> {
 }
 
 /// A packet against one triangle: `(t, u, v, hit bits)` for lanes in `active` with a
-/// hit in `(tmin, tmax)`. Lanes with an exactly-zero edge function are returned in
-/// `edge` for the caller to redo with the scalar test.
+/// hit in `(tmin, tmax)`. Lanes with an edge function within its error bound of zero
+/// (exactly zero included) are returned in `edge` for the caller to redo with the
+/// scalar test, which recomputes those edges in f64.
 ///
 /// `SHARED`: every lane has the origin `p.shared_origin`.
 #[inline(always)]
@@ -221,7 +265,8 @@ pub fn triangle_packet<L: Lanes, const SHARED: bool>(
     let w = bx * ay - by * ax;
 
     let zero = L::splat(0.0);
-    let edge = (u.eq(zero) | v.eq(zero) | w.eq(zero)).bitmask() & active;
+    let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
+    let edge = (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & active;
     let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
     let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
     let inside = !(neg & pos).bitmask() & active & !edge;
@@ -229,14 +274,17 @@ pub fn triangle_packet<L: Lanes, const SHARED: bool>(
         return (zero, zero, zero, 0, edge);
     }
     let det = u + v + w;
-    let t_scaled = u * (p.sz * a_z) + v * (p.sz * b_z) + w * (p.sz * c_z);
+    let (az, bz, cz) = (p.sz * a_z, p.sz * b_z, p.sz * c_z);
+    let t_scaled = u * az + v * bz + w * cz;
+    let t = t_scaled / det;
     let rcp = L::splat(1.0) / det;
-    let t = t_scaled * rcp;
+    let delta_t = t_error_bound(u, v, w, az, bz, cz, delta_e, rcp);
     let bits = inside
         & !det.eq(zero).bitmask()
         & det.is_finite().bitmask()
         & t.gt(p.tmin).bitmask()
-        & t.lt(tmax).bitmask();
+        & t.lt(tmax).bitmask()
+        & t.gt(delta_t).bitmask();
     (t, v * rcp, w * rcp, bits, edge)
 }
 

@@ -57,6 +57,8 @@ pub trait Lanes:
     /// Bit `i` set where lane `i` has its sign bit set (so `-0.0` counts as negative).
     fn sign_bits(self) -> u32;
     fn is_finite(self) -> Self;
+    /// Absolute value (clears the sign bit, as `f32::abs`).
+    fn abs(self) -> Self;
     /// IEEE square root (correctly rounded, as `f32::sqrt`).
     fn sqrt(self) -> Self;
     /// A mask with lanes `i` set where bit `i` of `bits` is set.
@@ -126,6 +128,10 @@ macro_rules! impl_lanes {
             #[inline(always)]
             fn is_finite(self) -> Self {
                 <$t>::is_finite(self)
+            }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$t>::abs(self)
             }
             #[inline(always)]
             fn sqrt(self) -> Self {

@@ -266,27 +266,43 @@ pub fn normal(t: &Triangles, i: usize) -> Vec3 {
         .normalize_or_zero()
 }
 
-/// The hit point rebuilt from barycentrics, as `SurfaceInteraction::new` does.
-pub fn hit_point(t: &Triangles, h: &Hit) -> Vec3 {
+/// The hit point rebuilt from barycentrics and its error bound, as
+/// `SurfaceInteraction::new` does.
+pub fn hit_point(t: &Triangles, h: &Hit) -> (Vec3, Vec3) {
     let i = h.prim as usize;
-    (1.0 - h.u - h.v) * t.v0[i] + h.u * t.v1[i] + h.v * t.v2[i]
+    packet_render::geometry::triangle_point([t.v0[i], t.v1[i], t.v2[i]], h.u, h.v)
 }
 
-/// Largest |coordinate| of triangle `i`: the scale `SurfaceInteraction` hands to
-/// `offset_ray_origin_scaled`.
-pub fn tri_scale(t: &Triangles, i: usize) -> f32 {
-    t.v0[i]
-        .abs()
-        .max(t.v1[i].abs())
-        .max(t.v2[i].abs())
-        .max_element()
-}
-
-/// A secondary-ray origin exactly as the integrator computes it.
+/// A secondary-ray origin exactly as the integrator computes it: the hit point offset
+/// by its error bound to the side of `n_leaving`.
 pub fn offset_origin(t: &Triangles, h: &Hit, n_leaving: Vec3) -> Vec3 {
-    packet_render::geometry::offset_ray_origin_scaled(
-        hit_point(t, h),
-        n_leaving,
-        tri_scale(t, h.prim as usize),
-    )
+    let (p, err) = hit_point(t, h);
+    packet_render::geometry::offset_ray_origin(p, err, n_leaving, n_leaving)
+}
+
+/// Whether the hit point lies farther than `k` offset distances from every *sharp* edge
+/// of its triangle: an edge whose neighbouring face turns by more than 90° (normals with
+/// a negative dot product: a cone's rim). Moving a point inwards along its face normal
+/// moves it towards such a neighbour's plane, so within a few offsets of that edge the
+/// origin can land outside the thin wedge; f32 cannot place a point inside a wedge
+/// thinner than a few ulps. At other edges the inward move only goes deeper. The offset
+/// distance is what `offset_ray_origin` moves the point by (`|n|·p_error`, plus the
+/// one-ulp rounding away per coordinate).
+pub fn clear_of_sharp_edges(m: &Mesh, t: &Triangles, h: &Hit, k: f64) -> bool {
+    let i = h.prim as usize;
+    let (p, err) = hit_point(t, h);
+    let n = normal(t, i);
+    let off = n.abs().dot(err) as f64 + 2.0 * (p.abs().max_element() * f32::EPSILON) as f64;
+    let c = [t.v0[i], t.v1[i], t.v2[i]].map(|v| v.as_dvec3());
+    let b = [1.0 - h.u as f64 - h.v as f64, h.u as f64, h.v as f64];
+    let twice_area = (c[1] - c[0]).cross(c[2] - c[0]).length();
+    let tri = m.tris[i];
+    (0..3).all(|j| {
+        let (e0, e1) = (tri[(j + 1) % 3], tri[(j + 2) % 3]);
+        let sharp = m.tris.iter().enumerate().any(|(o, ot)| {
+            o != i && ot.contains(&e0) && ot.contains(&e1) && normal(t, o).dot(n) < 0.0
+        });
+        let edge = (c[(j + 2) % 3] - c[(j + 1) % 3]).length();
+        !sharp || b[j] * twice_area / edge > k * off
+    })
 }
