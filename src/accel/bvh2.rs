@@ -638,19 +638,29 @@ impl<P: Primitives> Bvh2<P> {
 
     /// Closest hit on a prepared ray, nearer child first.
     pub fn closest_hit_query(&self, q: &RayQuery) -> Option<Hit> {
-        self.closest_hit_impl::<false>(q, &mut TraversalCounts::default())
+        let mut sink = Nearest {
+            tmax: q.tmax,
+            best: None,
+        };
+        self.closest_hit_impl::<false, _>(q, &mut sink, &mut TraversalCounts::default());
+        sink.best
     }
 
-    /// The closest-hit traversal; `COUNT` adds node visits and primitive tests to `counts`.
+    /// The closest-hit traversal, nearer child first, shared by the plain query
+    /// ([`Nearest`]) and the filtered one ([`FilterSink`], [`super::filter`]): the
+    /// interval ends at `sink.tmax()`, which only the sink shortens. Each primitive is in
+    /// one leaf, so no deduplication is needed. `COUNT` adds node visits and primitive
+    /// tests to `counts`.
     #[inline(always)]
-    fn closest_hit_impl<const COUNT: bool>(
+    fn closest_hit_impl<const COUNT: bool, S: LeafVisitor>(
         &self,
         q: &RayQuery,
+        sink: &mut S,
         counts: &mut TraversalCounts,
-    ) -> Option<Hit> {
-        let mut tmax = q.tmax;
-        let mut best: Option<Hit> = None;
-        self.node_entry(0, q, tmax)?;
+    ) {
+        if self.node_entry(0, q, sink.tmax()).is_none() {
+            return;
+        }
         let mut stack = [0u32; STACK_SIZE];
         let mut sp = 0;
         let mut node = 0usize;
@@ -660,20 +670,14 @@ impl<P: Primitives> Bvh2<P> {
             if n.is_leaf() {
                 for k in n.first as usize..(n.first + n.count) as usize {
                     counts.prim::<COUNT>();
-                    if let Some(h) = self.prims.intersect(k, q, tmax) {
-                        tmax = h.t;
-                        best = Some(Hit {
-                            t: h.t,
-                            prim: self.prim_ids[k],
-                            u: h.u,
-                            v: h.v,
-                        });
+                    if sink.visit(&self.prims, k, self.prim_ids[k], q) {
+                        return;
                     }
                 }
             } else {
                 let l = n.first as usize;
-                let hl = self.node_entry(l, q, tmax);
-                let hr = self.node_entry(l + 1, q, tmax);
+                let hl = self.node_entry(l, q, sink.tmax());
+                let hr = self.node_entry(l + 1, q, sink.tmax());
                 match (hl, hr) {
                     (Some(a), Some(b)) => {
                         let (near, far) = if a <= b { (l, l + 1) } else { (l + 1, l) };
@@ -696,66 +700,11 @@ impl<P: Primitives> Bvh2<P> {
             // Pop, skipping nodes that start beyond the current closest hit.
             loop {
                 if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let next = stack[sp] as usize;
-                if self.node_entry(next, q, tmax).is_some() {
-                    node = next;
-                    break;
-                }
-            }
-        }
-    }
-
-    /// The filtered query ([`super::filter`]): the closest-hit traversal, nearer child
-    /// first, with the interval ended by the nearest accepted candidate only. Each
-    /// primitive is in one leaf, so no deduplication is needed.
-    fn filtered_query(&self, q: &RayQuery, sink: &mut FilterSink) {
-        if self.node_entry(0, q, sink.tmax).is_none() {
-            return;
-        }
-        let mut stack = [0u32; STACK_SIZE];
-        let mut sp = 0;
-        let mut node = 0usize;
-        loop {
-            let n = &self.nodes[node];
-            if n.is_leaf() {
-                for k in n.first as usize..(n.first + n.count) as usize {
-                    if sink.test(&self.prims, k, self.prim_ids[k], q) {
-                        return;
-                    }
-                }
-            } else {
-                let l = n.first as usize;
-                let hl = self.node_entry(l, q, sink.tmax);
-                let hr = self.node_entry(l + 1, q, sink.tmax);
-                match (hl, hr) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if a <= b { (l, l + 1) } else { (l + 1, l) };
-                        stack[sp] = far as u32;
-                        sp += 1;
-                        node = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = l;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = l + 1;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            loop {
-                if sp == 0 {
                     return;
                 }
                 sp -= 1;
                 let next = stack[sp] as usize;
-                if self.node_entry(next, q, sink.tmax).is_some() {
+                if self.node_entry(next, q, sink.tmax()).is_some() {
                     node = next;
                     break;
                 }
@@ -820,20 +769,71 @@ impl<P: Primitives> Accel for Bvh2<P> {
     ) -> Option<Hit> {
         let q = RayQuery::new(ray)?;
         let mut sink = FilterSink::new(&q, opts, filter);
-        self.filtered_query(&q, &mut sink);
+        self.closest_hit_impl::<false, _>(&q, &mut sink, &mut TraversalCounts::default());
         sink.best
     }
 
     fn traversal_counts(&self, ray: &Ray) -> Option<TraversalCounts> {
         let mut counts = TraversalCounts::default();
         if let Some(q) = RayQuery::new(ray) {
-            self.closest_hit_impl::<true>(&q, &mut counts);
+            let mut sink = Nearest {
+                tmax: q.tmax,
+                best: None,
+            };
+            self.closest_hit_impl::<true, _>(&q, &mut sink, &mut counts);
         }
         Some(counts)
     }
 
     fn info(&self) -> AccelInfo {
         self.info.clone()
+    }
+}
+
+/// What [`Bvh2::closest_hit_impl`] does with a leaf's primitive.
+trait LeafVisitor {
+    /// The current end of the ray's interval.
+    fn tmax(&self) -> f32;
+    /// Tests leaf slot `k` (the scene's primitive `id`); true ends the traversal.
+    fn visit<P: Primitives>(&mut self, prims: &P, k: usize, id: u32, q: &RayQuery) -> bool;
+}
+
+/// The plain closest-hit query: keeps the nearest hit and shortens the interval to it.
+struct Nearest {
+    tmax: f32,
+    best: Option<Hit>,
+}
+
+impl LeafVisitor for Nearest {
+    #[inline(always)]
+    fn tmax(&self) -> f32 {
+        self.tmax
+    }
+
+    #[inline(always)]
+    fn visit<P: Primitives>(&mut self, prims: &P, k: usize, id: u32, q: &RayQuery) -> bool {
+        if let Some(h) = prims.intersect(k, q, self.tmax) {
+            self.tmax = h.t;
+            self.best = Some(Hit {
+                t: h.t,
+                prim: id,
+                u: h.u,
+                v: h.v,
+            });
+        }
+        false
+    }
+}
+
+impl LeafVisitor for FilterSink<'_, '_> {
+    #[inline(always)]
+    fn tmax(&self) -> f32 {
+        self.tmax
+    }
+
+    #[inline(always)]
+    fn visit<P: Primitives>(&mut self, prims: &P, k: usize, id: u32, q: &RayQuery) -> bool {
+        self.test(prims, k, id, q)
     }
 }
 
