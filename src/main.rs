@@ -118,7 +118,7 @@ struct ConvergeArgs {
     /// CSV of every render.
     #[arg(long, default_value = "convergence.csv")]
     csv: PathBuf,
-    /// SVG plot, log-log RMSE against seconds.
+    /// SVG plot, log-log display RMSE (clamped, sRGB) against seconds.
     #[arg(long, default_value = "convergence.svg")]
     plot: PathBuf,
     /// Acceleration structure.
@@ -411,8 +411,8 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
     let report = pool.install(|| {
         converge::run(&scene, &opts, |r| {
             eprintln!(
-                "{:>18} budget {:>4}: {:.4} s, RMSE {:.5}",
-                r.strategy, r.budget, r.seconds, r.rmse
+                "{:>18} budget {:>4}: {:.4} s, RMSE {:.5}, display RMSE {:.5}",
+                r.strategy, r.budget, r.seconds, r.rmse, r.display_rmse
             )
         })
     })?;
@@ -425,7 +425,7 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
     report.write_csv(&args.csv)?;
     report.write_plot(
         &args.plot,
-        &format!("{}: RMSE against render time", args.scene.display()),
+        &format!("{}: display RMSE against render time", args.scene.display()),
     )?;
     Ok(())
 }

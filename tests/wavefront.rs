@@ -2,8 +2,10 @@
 //! scene, distribution effects included, at 1 and 2 threads), and a scene pays only for
 //! the queues and stages it needs, as `--stats-json` of the real binary shows.
 
-use packet_render::accel::{AccelKind, SceneAccel};
+use packet_render::accel::{AccelKind, Primitives, SceneAccel, Triangles};
+use packet_render::geometry::RayQuery;
 use packet_render::integrator::{RenderOptions, wavefront, whitted};
+use packet_render::scene::Scene;
 use packet_render::scene::load::load_scene;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -26,6 +28,33 @@ fn close(a: f32, b: f32) -> bool {
     (a - b).abs() <= 1e-4 * a.abs().max(1.0)
 }
 
+/// Whether the camera ray of pixel `(x, y)` hits two triangles at exactly its closest
+/// t, by brute force. Only decidable where a pixel has one camera ray through its
+/// centre (1 spp, no lens, no motion); elsewhere `false`, so a difference fails.
+fn camera_ray_ties(scene: &Scene, opts: &RenderOptions, x: u32, y: u32) -> bool {
+    if opts.spp != 1 || scene.features.depth_of_field || scene.features.motion {
+        return false;
+    }
+    let ray = scene
+        .camera
+        .frame(opts.width, opts.height)
+        .ray(x as f32 + 0.5, y as f32 + 0.5);
+    let (Some(best), Some(q)) = (
+        SceneAccel::build(scene, AccelKind::BruteForce).closest_hit(&ray),
+        RayQuery::new(&ray),
+    ) else {
+        return false;
+    };
+    let tris = Triangles::from_mesh(&scene.mesh);
+    (0..tris.count())
+        .filter(|&i| {
+            tris.intersect(i, &q, f32::INFINITY)
+                .is_some_and(|h| h.t == best.t)
+        })
+        .count()
+        >= 2
+}
+
 #[test]
 fn wavefront_images_equal_recursive_images_on_every_shipped_scene() {
     let mut compared = 0;
@@ -42,12 +71,28 @@ fn wavefront_images_equal_recursive_images_on_every_shipped_scene() {
         opts.samples.glossy = opts.samples.glossy.min(4);
         opts.samples.lens = opts.samples.lens.min(2);
         opts.samples.time = opts.samples.time.min(2);
-        // BVH2 traces batches ray by ray, so both integrators meet the same traversal
-        // and resolve exact ties (a camera ray through the edge two walls share hits
-        // both at the same t) the same way; with BVH4 packets a tie may go to the other
-        // wall. Packet-versus-single agreement is tested in tests/simd_equivalence.rs.
-        let accel = SceneAccel::build(&scene, AccelKind::Bvh2);
-        for threads in [1, 2] {
+        // BVH2 traces batches ray by ray; the BVH4 (the default) traces the wavefront's
+        // batches as 16-ray packets and the recursive renderer's rays one by one. The
+        // two traversals visit leaves in different orders, so a ray that hits two
+        // primitives at exactly the same t (a camera ray through the edge the Cornell
+        // floor shares with a wall) may get the other primitive: measured, 10 of the
+        // 262,144 pixel-centre rays of cornell.toml at 512 x 512 (17 with the BVH8), all
+        // exact ties, none in the other shipped scenes; here 1 of 1728 Cornell pixels
+        // on the BVH4 (floor against green wall, bottom row), 5 of 19,200 at 160 x 120,
+        // none on the BVH2. A deterministic tie rule (smallest (t, primitive id), with
+        // ties admitted by the triangle tests and the node culling) would remove the
+        // cause but touches every closest-hit comparison of the traversals and SIMD
+        // kernels; not done. Until then a differing BVH4 pixel passes only if its
+        // camera ray is shown, by brute force, to hit two primitives at one t, and
+        // the test prints how many it let through.
+        for (kind, threads) in [
+            (AccelKind::Bvh2, 1),
+            (AccelKind::Bvh2, 2),
+            (AccelKind::Bvh4, 1),
+            (AccelKind::Bvh4, 2),
+        ] {
+            let accel = SceneAccel::build(&scene, kind);
+            let name = format!("{name} ({kind})");
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
@@ -68,18 +113,38 @@ fn wavefront_images_equal_recursive_images_on_every_shipped_scene() {
                 wave.nonfinite_samples, reference.nonfinite_samples,
                 "{name}"
             );
-            for (i, (a, b)) in reference
+            let mut ties = 0;
+            let differ: Vec<String> = reference
                 .film
                 .pixels
                 .iter()
                 .zip(&wave.film.pixels)
                 .enumerate()
-            {
-                assert!(
-                    (0..3).all(|c| close(a[c], b[c])),
-                    "{name}, {threads} threads: pixel ({}, {}) recursive {a} wavefront {b}",
-                    i as u32 % opts.width,
-                    i as u32 / opts.width
+                .filter(|(_, (a, b))| !(0..3).all(|c| close(a[c], b[c])))
+                .filter(|(i, _)| {
+                    let (x, y) = (*i as u32 % opts.width, *i as u32 / opts.width);
+                    let tie = kind != AccelKind::Bvh2 && camera_ray_ties(&scene, &opts, x, y);
+                    ties += tie as usize;
+                    !tie
+                })
+                .map(|(i, (a, b))| {
+                    format!(
+                        "({}, {}) recursive {a} wavefront {b}",
+                        i as u32 % opts.width,
+                        i as u32 / opts.width
+                    )
+                })
+                .collect();
+            assert!(
+                differ.is_empty(),
+                "{name}, {threads} threads: {} pixels differ, first {:?}",
+                differ.len(),
+                &differ[..differ.len().min(3)]
+            );
+            if ties > 0 {
+                eprintln!(
+                    "NOTE: {name}, {threads} threads: {ties} pixels differ on an exact tie of \
+                     their camera ray (two primitives at one t), let through"
                 );
             }
             assert!(wave.stages_ms.is_some() && reference.stages_ms.is_none());

@@ -5,6 +5,7 @@ mod aabb;
 mod offset;
 mod ray;
 mod sphere;
+pub mod terminator;
 mod triangle;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};

@@ -430,6 +430,58 @@ mod tests {
         }
     }
 
+    /// The first `n` points of a van der Corput sequence in base `b`, for `m` the
+    /// largest power of `b` not above `n`, fill the `m` strata of width `1/m` evenly:
+    /// each holds `n / m` or `n / m + 1` points (every aligned block of `m` consecutive
+    /// indices puts one point in each stratum). A Cranley-Patterson rotation shifts the
+    /// block's lattice `{j/m + c}` by the same amount modulo 1, which keeps one point per
+    /// stratum. With `m = n` (n a power of b) every stratum holds exactly one.
+    fn assert_halton_strata(values: &[f32], b: u32, what: &str) {
+        let n = values.len() as u32;
+        let mut m = 1;
+        while m * b <= n {
+            m *= b;
+        }
+        let mut count = vec![0u32; m as usize];
+        for &x in values {
+            count[((x * m as f32) as usize).min(m as usize - 1)] += 1;
+        }
+        let lo = n / m;
+        assert!(
+            count.iter().all(|&c| c == lo || c == lo + 1),
+            "{what}, base {b}: {m} strata, counts {count:?}"
+        );
+        assert_eq!(count.iter().sum::<u32>(), n);
+    }
+
+    /// Rotated Halton sets at powers of their bases put exactly one point per stratum.
+    #[test]
+    fn halton_sets_are_stratified_at_powers_of_their_bases() {
+        let mut rng = PixelRng::new(9, 4);
+        let mut pos = Vec::new();
+        let mut t = Vec::new();
+        for (n, dim) in [
+            (16, Dimension::Pixel),
+            (8, Dimension::Pixel),
+            (49, Dimension::Lens),
+        ] {
+            for _ in 0..20 {
+                fill_2d(SamplerKind::Halton, n, dim, false, &mut rng, &mut pos);
+                let (bx, by) = dim.bases();
+                let xs: Vec<f32> = pos.iter().map(|p| p.0).collect();
+                let ys: Vec<f32> = pos.iter().map(|p| p.1).collect();
+                assert_halton_strata(&xs, bx, &format!("{dim:?} {n}"));
+                assert_halton_strata(&ys, by, &format!("{dim:?} {n}"));
+            }
+        }
+        for n in [11, 121, 30] {
+            for _ in 0..20 {
+                fill_1d(SamplerKind::Halton, n, Dimension::Time, &mut rng, &mut t);
+                assert_halton_strata(&t, 11, &format!("time {n}"));
+            }
+        }
+    }
+
     #[test]
     fn every_pattern_stays_in_the_unit_square() {
         let mut rng = PixelRng::new(1, 2);
@@ -447,14 +499,20 @@ mod tests {
                 fill_1d(kind, n, Dimension::Time, &mut rng, &mut t);
                 assert_eq!(t.len(), n as usize);
                 assert!(t.iter().all(|x| (0.0..1.0).contains(x)));
-                if kind != SamplerKind::Random {
-                    // grid, jittered and Halton put one value in each of n strata
+                if matches!(kind, SamplerKind::Grid | SamplerKind::Jittered) {
+                    // grid and jittered put one value in each of n strata
                     let mut seen = vec![0; n as usize];
                     for x in &t {
                         seen[(x * n as f32) as usize] += 1;
                     }
-                    if kind != SamplerKind::Halton {
-                        assert!(seen.iter().all(|&c| c == 1), "{kind} {n}: {t:?}");
+                    assert!(seen.iter().all(|&c| c == 1), "{kind} {n}: {t:?}");
+                }
+                if kind == SamplerKind::Halton {
+                    // The time set is base 11, the lens set bases 5 and 7.
+                    let xs: Vec<f32> = pos.iter().map(|p| p.0).collect();
+                    let ys: Vec<f32> = pos.iter().map(|p| p.1).collect();
+                    for (values, base) in [(&t, 11), (&xs, 5), (&ys, 7)] {
+                        assert_halton_strata(values, base, &format!("{kind} {n}"));
                     }
                 }
             }

@@ -36,6 +36,7 @@ use super::sampling::{
 use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::{Film, PixelSums, partial};
+use crate::geometry::terminator::shadow_terminator_point;
 use crate::geometry::{Ray, offset_ray_origin_scaled};
 use crate::scene::{CameraFrame, LensFrame, Light, Scene, TriangleMesh};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
@@ -377,6 +378,13 @@ pub struct SurfaceInteraction {
     /// Largest |coordinate| of the primitive (corners, or centre plus radius): the
     /// scale of the rounding error of `p`, which sizes the offset of secondary origins.
     pub scale: f32,
+    /// On a triangle with vertex normals, the base point of its shadow rays: `p`
+    /// lifted onto the smooth surface the normals describe ([`shadow_terminator_point`],
+    /// Hanika 2021), so that a coarse mesh shaded smooth neither shadows itself in
+    /// facets near the terminator nor drops lights that are above the shading normal's
+    /// horizon but below the flat facet. `None` elsewhere (shadow rays leave from `p`,
+    /// and a light below the geometric surface contributes nothing).
+    pub p_shadow: Option<Vec3>,
 }
 
 impl SurfaceInteraction {
@@ -388,6 +396,7 @@ impl SurfaceInteraction {
     pub fn new(scene: &Scene, ray: &Ray, hit: &SceneHit) -> Self {
         // Moving primitives are placed at the ray's time; translation leaves normals
         // unchanged, so both kinds of triangle (and of sphere) share one rule.
+        // The last element: corners and vertex normals, for the shadow-ray base point.
         let on_triangle = |mesh: &TriangleMesh, t: usize, [a, b, c]: [Vec3; 3]| {
             let p = (1.0 - hit.u - hit.v) * a + hit.u * b + hit.v * c;
             let scale = a.abs().max(b.abs()).max(c.abs()).max_element();
@@ -395,15 +404,16 @@ impl SurfaceInteraction {
                 mesh.geometric_normal(t),
                 mesh.shading_normal(t, hit.u, hit.v),
             );
-            (p, ng, ns, mesh.material[t], scale)
+            let smooth = mesh.vertex_normals(t).map(|n| ([a, b, c], n));
+            (p, ng, ns, mesh.material[t], scale, smooth)
         };
         let on_sphere = |center: Vec3, radius: f32, material: u32| {
             let n = (ray.at(hit.t) - center).normalize_or_zero();
             let scale = center.abs().max_element() + radius;
-            (center + radius * n, n, n, material, scale)
+            (center + radius * n, n, n, material, scale, None)
         };
         let (motion, spheres) = (&scene.motion, &scene.spheres);
-        let (p, ng, ns, material, scale) = match hit.prim {
+        let (p, ng, ns, material, scale, smooth) = match hit.prim {
             PrimRef::Triangle(t) => {
                 on_triangle(&scene.mesh, t as usize, scene.mesh.corners(t as usize))
             }
@@ -432,7 +442,13 @@ impl SurfaceInteraction {
         let ng = if front_face { ng } else { -ng };
         // Interpolated normals may disagree with the true surface (coarse meshes,
         // inconsistent winding); keep them on the geometric side.
-        let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        let flip = ns.dot(ng) < 0.0;
+        let ns = if flip { -ns } else { ns };
+        let p_shadow = smooth.map(|(corners, normals)| {
+            let normals = if flip { normals.map(|n| -n) } else { normals };
+            let bary = [1.0 - hit.u - hit.v, hit.u, hit.v];
+            shadow_terminator_point(p, corners, normals, bary, ng)
+        });
         SurfaceInteraction {
             p,
             n_geometric: ng,
@@ -440,6 +456,7 @@ impl SurfaceInteraction {
             material,
             front_face,
             scale,
+            p_shadow,
         }
     }
 }
@@ -649,7 +666,14 @@ impl Shader<'_> {
         let mut stream: Option<PixelRng> = None;
         out.local = m.emission;
         if m.diffuse != Vec3::ZERO || m.checker.is_some() || m.specular != Vec3::ZERO {
-            let albedo = m.albedo_at(si.p);
+            // The winding normal, not the one facing the ray: a checker surface on a
+            // cell boundary shows the same cell from both sides.
+            let outward = if si.front_face {
+                si.n_geometric
+            } else {
+                -si.n_geometric
+            };
+            let albedo = m.albedo_on_surface(si.p, outward, si.scale);
             out.local += scene.ambient * albedo;
             self.direct(
                 -d,
@@ -819,12 +843,17 @@ impl Shader<'_> {
         drawn: &mut EffectSamplesDrawn,
     ) {
         let m = &self.scene.materials[si.material as usize];
-        let origin = offset_ray_origin_scaled(si.p, si.n_geometric, si.scale);
-        // A light below the surface (or below the shading normal) contributes nothing:
-        // no shadow ray for it.
+        let origin =
+            offset_ray_origin_scaled(si.p_shadow.unwrap_or(si.p), si.n_geometric, si.scale);
+        // A light below the shading normal's horizon contributes nothing, and neither
+        // does one below the true surface, unless the surface is a smooth-shaded mesh:
+        // there the facet is only an approximation, and the shadow ray from the lifted
+        // origin decides (Hanika 2021). No shadow ray for a light that contributes
+        // nothing.
+        let smooth = si.p_shadow.is_some();
         let reflectance = |wi: Vec3| {
             let cos_s = wi.dot(si.n_shading);
-            if !(wi.dot(si.n_geometric) > 0.0 && cos_s > 0.0) {
+            if !(cos_s > 0.0 && (smooth || wi.dot(si.n_geometric) > 0.0)) {
                 return None;
             }
             let mut f = albedo * (FRAC_1_PI * cos_s);

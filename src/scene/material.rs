@@ -29,6 +29,13 @@ pub struct Material {
     pub translucency_exponent: f32,
 }
 
+/// How far inside the surface, relative to the magnitude of the hit point's coordinates,
+/// [`Material::albedo_on_surface`] looks up a solid texture: 64 ulps of 1. The
+/// barycentric hit point is within about 4 ulps of the true surface, the division by
+/// the cell size adds 1, and a vertex typed as a decimal ("0.3") sits within an ulp of
+/// the boundary it was meant for; 64 leaves a factor of about 8 over their sum.
+pub const CHECKER_INSET: f32 = 64.0 * f32::EPSILON;
+
 /// A 3D checkerboard: `color_a`/`color_b` alternate in cubes of edge `scale` (solid
 /// texture, so it needs no UVs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -108,6 +115,26 @@ impl Material {
                 if parity == 0 { c.color_a } else { c.color_b }
             }
         }
+    }
+
+    /// Diffuse albedo at a hit point `p` on a surface with outward (winding) normal
+    /// `outward`, where `scale` bounds the magnitude of the coordinates `p` was computed
+    /// from (the hit point's rounding error is a few ulps of it).
+    ///
+    /// The solid checkerboard `floor(p / scale)` is discontinuous on every cell
+    /// boundary. A surface lying exactly on one (a floor at y = 1 with cells of 0.5)
+    /// would flip between the two cells on the rounding noise of each hit point: salt
+    /// and pepper. The texture is therefore looked up at a point moved *inside* the
+    /// surface by [`CHECKER_INSET`] times `scale`, well above that noise: a surface on a
+    /// boundary takes the cell behind it, the same from either side and for every
+    /// pixel, and a surface crossing boundaries moves its checker edges by that inset
+    /// (a few 1e-6 of the scene's scale), which no pixel shows.
+    pub fn albedo_on_surface(&self, p: Vec3, outward: Vec3, scale: f32) -> Vec3 {
+        if self.checker.is_none() {
+            return self.diffuse;
+        }
+        let scale = scale.max(p.abs().max_element());
+        self.albedo_at(p - outward * (CHECKER_INSET * scale))
     }
 
     pub fn validate(&self) -> Result<(), String> {

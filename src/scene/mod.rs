@@ -80,6 +80,20 @@ impl TriangleMesh {
         (b - a).cross(c - a).normalize_or_zero()
     }
 
+    /// The unit vertex normals of triangle `t`'s corners, if the mesh has normals and
+    /// none of the three is zero (zero means "use the geometric normal").
+    pub fn vertex_normals(&self, t: usize) -> Option<[Vec3; 3]> {
+        if !self.has_normals() {
+            return None;
+        }
+        let n = |i: u32| {
+            let i = i as usize;
+            Vec3::new(self.nxs[i], self.nys[i], self.nzs[i]).normalize_or_zero()
+        };
+        let ns = [n(self.i0[t]), n(self.i1[t]), n(self.i2[t])];
+        ns.iter().all(|n| *n != Vec3::ZERO).then_some(ns)
+    }
+
     /// Interpolated shading normal at barycentrics `(u, v)`, or the geometric normal.
     pub fn shading_normal(&self, t: usize, u: f32, v: f32) -> Vec3 {
         if !self.has_normals() {

@@ -95,22 +95,43 @@ pub fn tessellated_mesh(
     material: u32,
 ) -> usize {
     let (nu, m) = uv_sphere_resolution(triangles);
+    let (positions, indices) = uv_sphere(nu, m, |dir| center + radius * blob_radius(dir) * dir);
+
+    // Area-weighted vertex normals: the unnormalised face normal is twice the area.
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    for t in &indices {
+        let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+        let n = (p1 - p0).cross(p2 - p0);
+        for i in t {
+            normals[*i as usize] += n;
+        }
+    }
+    for n in &mut normals {
+        *n = n.normalize_or_zero();
+    }
+    b.add_mesh(&positions, &normals, &indices, material);
+    indices.len()
+}
+
+/// A UV sphere of `nu` segments and `m` stacks with the vertex at unit direction `dir`
+/// placed at `place(dir)`: single pole vertices, the seam closed by index wrap-around,
+/// outward counter-clockwise triangles (see [`tessellated_mesh`]).
+fn uv_sphere(nu: usize, m: usize, place: impl Fn(Vec3) -> Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let ring = |j: usize, k: usize| (1 + (j - 1) * nu + k % nu) as u32;
     let south = (1 + (m - 1) * nu) as u32;
 
     let mut positions = Vec::with_capacity(nu * (m - 1) + 2);
-    positions.push(center + radius * blob_radius(Vec3::Y) * Vec3::Y);
+    positions.push(place(Vec3::Y));
     for j in 1..m {
         let theta = PI * j as f32 / m as f32;
         let (st, ct) = theta.sin_cos();
         for k in 0..nu {
             let phi = 2.0 * PI * k as f32 / nu as f32;
             let (sp, cp) = phi.sin_cos();
-            let dir = Vec3::new(st * cp, ct, st * sp);
-            positions.push(center + radius * blob_radius(dir) * dir);
+            positions.push(place(Vec3::new(st * cp, ct, st * sp)));
         }
     }
-    positions.push(center - radius * blob_radius(-Vec3::Y) * Vec3::Y);
+    positions.push(place(-Vec3::Y));
 
     let mut indices = Vec::with_capacity(2 * nu * (m - 1));
     for k in 0..nu {
@@ -131,19 +152,28 @@ pub fn tessellated_mesh(
     for k in 0..nu {
         indices.push([south, ring(m - 1, k), ring(m - 1, k + 1)]);
     }
+    (positions, indices)
+}
 
-    // Area-weighted vertex normals: the unnormalised face normal is twice the area.
-    let mut normals = vec![Vec3::ZERO; positions.len()];
-    for t in &indices {
-        let [p0, p1, p2] = t.map(|i| positions[i as usize]);
-        let n = (p1 - p0).cross(p2 - p0);
-        for i in t {
-            normals[*i as usize] += n;
-        }
-    }
-    for n in &mut normals {
-        *n = n.normalize_or_zero();
-    }
+/// Adds a coarse UV sphere of `segments` x `stacks` (at least 3 x 2) with the exact
+/// sphere normals at its vertices: the classic low-polygon, smooth-shaded mesh on which
+/// shadow rays leaving the flat facets shadow the lit side near the terminator (see
+/// [`crate::geometry::terminator`]). Returns the triangles added,
+/// `2 segments (stacks - 1)`.
+pub fn low_poly_sphere(
+    b: &mut SceneBuilder,
+    segments: usize,
+    stacks: usize,
+    center: Vec3,
+    radius: f32,
+    material: u32,
+) -> usize {
+    let (nu, m) = (segments.max(3), stacks.max(2));
+    let (positions, indices) = uv_sphere(nu, m, |dir| center + radius * dir);
+    let normals: Vec<Vec3> = positions
+        .iter()
+        .map(|p| ((*p - center) / radius).normalize_or_zero())
+        .collect();
     b.add_mesh(&positions, &normals, &indices, material);
     indices.len()
 }
