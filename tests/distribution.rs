@@ -117,7 +117,11 @@ fn estimators_are_unbiased() {
     let mut high = options(&scene, 12, 64);
     high.samples.shadow = 4;
     high.samples.glossy = 4;
-    for sampler in [SamplerKind::Jittered, SamplerKind::Halton] {
+    for sampler in [
+        SamplerKind::Jittered,
+        SamplerKind::Halton,
+        SamplerKind::Sobol,
+    ] {
         high.sampler = sampler;
         let highs: Vec<f64> = (0..4)
             .map(|s| {

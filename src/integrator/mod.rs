@@ -4,6 +4,7 @@
 
 pub mod region;
 pub mod sampling;
+pub mod sobol;
 pub mod wavefront;
 pub mod whitted;
 

@@ -33,6 +33,7 @@
 use super::sampling::{
     Dimension, PixelRng, decorrelate, fill_1d, fill_2d, sample_aperture, sample_phong_lobe,
 };
+use super::sobol::{SobolDim, SobolSet};
 use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::{Film, PixelSums, partial};
@@ -254,6 +255,76 @@ impl CameraSampler {
     ) {
         let plan = self.plan;
         let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
+        // The Sobol sampler computes each point from its index (only the rendered
+        // ones); the others draw every set of the pixel, in a fixed order.
+        let sobol = (plan.sampler == SamplerKind::Sobol).then(|| {
+            [SobolDim::Pixel, SobolDim::Lens, SobolDim::Time].map(|d| SobolSet::new(seed, index, d))
+        });
+        if sobol.is_some() {
+            let rendered = (plan.eye_end - plan.eye_begin) as u64;
+            if plan.lens > 0 {
+                drawn.lens += rendered * lens_n as u64;
+            }
+            if plan.time > 0 {
+                drawn.time += rendered * (lens_n * time_n) as u64;
+            }
+        } else {
+            self.draw_sets(seed, index, out, drawn);
+        }
+        // Box: samples inside the pixel; otherwise over the filter's footprint.
+        let footprint = 2.0 * plan.filter.radius();
+        out.offsets.clear();
+        out.rays.clear();
+        for e in plan.eye_begin as usize..plan.eye_end as usize {
+            let (sx, sy) = match &sobol {
+                Some(sets) => sets[0].point(e as u32),
+                None => out.pixel_pos[e],
+            };
+            let (ox, oy) = if plan.filter == FilterKind::Box {
+                (sx, sy)
+            } else {
+                (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
+            };
+            out.offsets.push((ox, oy));
+            let pinhole = self.frame.ray(x as f32 + ox, y as f32 + oy);
+            for l in 0..lens_n {
+                let lens_index = e * lens_n as usize + l as usize;
+                let lens_point = (plan.lens > 0).then(|| {
+                    let (u, v) = match &sobol {
+                        Some(sets) => sets[1].point(lens_index as u32),
+                        None => out.lens_pos[lens_index],
+                    };
+                    sample_aperture(u, v, self.lens.blades, self.lens.rotation)
+                });
+                for t in 0..time_n {
+                    let time = if plan.time > 0 {
+                        let k = lens_index * time_n as usize + t as usize;
+                        self.lens.time(match &sobol {
+                            Some(sets) => sets[2].value(k as u32),
+                            None => out.times[k],
+                        })
+                    } else {
+                        self.lens.shutter[0]
+                    };
+                    out.rays
+                        .push(self.lens.ray(&self.frame, pinhole, lens_point, time));
+                }
+            }
+        }
+    }
+
+    /// Draws every camera set of the pixel (all `eye` samples) from the pixel's own
+    /// stream, for the patterns that are drawn as whole sets. Draw order is fixed:
+    /// pixel positions, lens points, shutter times.
+    fn draw_sets(
+        &self,
+        seed: u64,
+        index: u64,
+        out: &mut PixelSamples,
+        drawn: &mut EffectSamplesDrawn,
+    ) {
+        let plan = self.plan;
+        let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
         let rng = &mut PixelRng::new(seed, index);
         fill_2d(
             plan.sampler,
@@ -281,43 +352,6 @@ impl CameraSampler {
             fill_1d(plan.sampler, n, Dimension::Time, rng, &mut out.times);
             decorrelate(plan.sampler, &mut out.times, rng);
             drawn.time += n as u64;
-        }
-        // Box: samples inside the pixel; otherwise over the filter's footprint.
-        let footprint = 2.0 * plan.filter.radius();
-        out.offsets.clear();
-        out.rays.clear();
-        let rendered = plan.eye_begin as usize..plan.eye_end as usize;
-        for (e, &(sx, sy)) in out
-            .pixel_pos
-            .iter()
-            .enumerate()
-            .take(rendered.end)
-            .skip(rendered.start)
-        {
-            let (ox, oy) = if plan.filter == FilterKind::Box {
-                (sx, sy)
-            } else {
-                (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
-            };
-            out.offsets.push((ox, oy));
-            let pinhole = self.frame.ray(x as f32 + ox, y as f32 + oy);
-            for l in 0..lens_n {
-                let lens_index = e * lens_n as usize + l as usize;
-                let lens_point = (plan.lens > 0).then(|| {
-                    let (u, v) = out.lens_pos[lens_index];
-                    sample_aperture(u, v, self.lens.blades, self.lens.rotation)
-                });
-                for t in 0..time_n {
-                    let time = if plan.time > 0 {
-                        self.lens
-                            .time(out.times[lens_index * time_n as usize + t as usize])
-                    } else {
-                        self.lens.shutter[0]
-                    };
-                    out.rays
-                        .push(self.lens.ray(&self.frame, pinhole, lens_point, time));
-                }
-            }
         }
     }
 }
@@ -548,6 +582,42 @@ pub(crate) struct TileResult {
     pub stages: StageTimes,
 }
 
+/// Which per-hit set a shading point draws: its pixel, path and depth, and what the
+/// points are for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HitSet {
+    pub seed: u64,
+    pub pixel: u64,
+    pub path: u64,
+    pub depth: u32,
+    pub dim: SobolDim,
+}
+
+/// Fills `out` with the `n` points of a per-hit set (light points, lobe directions).
+/// With the Sobol sampler, at the first hit of a camera ray (`depth == 0`, where the
+/// path identity is the camera ray's index `c` in its pixel) the points are
+/// `c n .. c n + n` of the pixel's sequence for `dim`: one set stratified across all of
+/// the pixel's camera rays, so that one shadow point per eye sample still covers the
+/// light evenly over the pixel. Everywhere else the set is drawn from the shading
+/// point's own stream ([`path_rng`], created on first use).
+pub(crate) fn hit_points(
+    sampler: SamplerKind,
+    set: HitSet,
+    n: u32,
+    stream: &mut Option<PixelRng>,
+    out: &mut Vec<(f32, f32)>,
+) {
+    if sampler == SamplerKind::Sobol && set.depth == 0 {
+        let seq = SobolSet::new(set.seed, set.pixel, set.dim);
+        let first = (set.path as u32).wrapping_mul(n);
+        out.clear();
+        out.extend((0..n).map(|i| seq.point(first.wrapping_add(i))));
+        return;
+    }
+    let rng = stream.get_or_insert_with(|| path_rng(set.seed, set.pixel, set.path));
+    fill_2d(sampler, n, Dimension::Hit, false, rng, out);
+}
+
 /// The random stream of the shading point reached by path `path` of pixel `pixel`.
 /// Keyed by identity, not by visiting order, so a depth-first and a breadth-first
 /// traversal of the same ray tree draw the same numbers. Distinct from the pixel's own
@@ -680,6 +750,7 @@ impl Shader<'_> {
                 time,
                 si,
                 albedo,
+                depth,
                 &mut stream,
                 pixel,
                 path,
@@ -723,7 +794,15 @@ impl Shader<'_> {
                 let axis = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
                     reflect(d, si.n_geometric)
                 });
-                let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
+                let n = self.lobe_points(
+                    depth,
+                    SobolDim::Glossy,
+                    &mut stream,
+                    pixel,
+                    path,
+                    out,
+                    drawn,
+                );
                 let weight = m.glossy / n as f32;
                 for i in 0..n as usize {
                     let (u, v) = out.points[i];
@@ -779,7 +858,15 @@ impl Shader<'_> {
                     // normal.
                     let origin = offset_ray_origin_scaled(si.p, -si.n_geometric, si.scale);
                     if m.is_translucent() {
-                        let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
+                        let n = self.lobe_points(
+                            depth,
+                            SobolDim::Translucency,
+                            &mut stream,
+                            pixel,
+                            path,
+                            out,
+                            drawn,
+                        );
                         let w = weight / n as f32;
                         for i in 0..n as usize {
                             let (u, v) = out.points[i];
@@ -801,9 +888,11 @@ impl Shader<'_> {
 
     /// Lobe sample points in `out.points`: `glossy` stratified ones at the first hit
     /// of a camera ray, one deeper down (the ray tree stays linear). Returns the count.
+    #[allow(clippy::too_many_arguments)]
     fn lobe_points(
         &self,
         depth: u32,
+        dim: SobolDim,
         stream: &mut Option<PixelRng>,
         pixel: u64,
         path: u64,
@@ -811,15 +900,14 @@ impl Shader<'_> {
         drawn: &mut EffectSamplesDrawn,
     ) -> u32 {
         let n = if depth == 0 { self.plan.glossy } else { 1 };
-        let rng = stream.get_or_insert_with(|| path_rng(self.seed, pixel, path));
-        fill_2d(
-            self.plan.sampler,
-            n,
-            Dimension::Hit,
-            false,
-            rng,
-            &mut out.points,
-        );
+        let set = HitSet {
+            seed: self.seed,
+            pixel,
+            path,
+            depth,
+            dim,
+        };
+        hit_points(self.plan.sampler, set, n, stream, &mut out.points);
         drawn.glossy += n as u64;
         n
     }
@@ -835,6 +923,7 @@ impl Shader<'_> {
         time: f32,
         si: &SurfaceInteraction,
         albedo: Vec3,
+        depth: u32,
         stream: &mut Option<PixelRng>,
         pixel: u64,
         path: u64,
@@ -893,14 +982,18 @@ impl Shader<'_> {
                     // The mean over `shadow` stratified points of the light of
                     // `f · L dω / pdf`.
                     let n = self.plan.shadow;
-                    let rng = stream.get_or_insert_with(|| path_rng(self.seed, pixel, path));
                     let mut points = std::mem::take(&mut out.points);
-                    fill_2d(
+                    hit_points(
                         self.plan.sampler,
+                        HitSet {
+                            seed: self.seed,
+                            pixel,
+                            path,
+                            depth,
+                            dim: SobolDim::Light(index),
+                        },
                         n,
-                        Dimension::Hit,
-                        false,
-                        rng,
+                        stream,
                         &mut points,
                     );
                     drawn.light += n as u64;
@@ -1043,5 +1136,62 @@ fn scatter_dir(dir: Vec3, n_geometric: Vec3, fallback: impl FnOnce() -> Vec3) ->
         dir
     } else {
         fallback()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first-hit light points of a pixel's 16 camera rays, one each: with the
+    /// Sobol sampler they form a (0,4,2)-net (one point in every elementary interval
+    /// of area 1/16), so the light is covered evenly across the pixel. The jittered
+    /// sampler (the behaviour before the Sobol sampler) draws each camera ray's single
+    /// point on its own, which is checked to fail the same test in most pixels.
+    #[test]
+    fn sobol_light_points_are_stratified_across_the_pixels_camera_rays() {
+        let points = |sampler, pixel| -> Vec<(f32, f32)> {
+            let mut out = Vec::new();
+            (0..16u64)
+                .map(|path| {
+                    let set = HitSet {
+                        seed: 3,
+                        pixel,
+                        path,
+                        depth: 0,
+                        dim: SobolDim::Light(0),
+                    };
+                    hit_points(sampler, set, 1, &mut None, &mut out);
+                    out[0]
+                })
+                .collect()
+        };
+        let pixels = 64;
+        for p in 0..pixels {
+            let pts = points(SamplerKind::Sobol, p);
+            assert!(
+                crate::integrator::sobol::is_0m2_net(&pts),
+                "pixel {p}: {pts:?}"
+            );
+        }
+        let jittered_nets = (0..pixels)
+            .filter(|&p| crate::integrator::sobol::is_0m2_net(&points(SamplerKind::Jittered, p)))
+            .count();
+        assert!(jittered_nets < 4, "{jittered_nets} jittered nets");
+        // Deeper hits keep a set of their own per shading point.
+        let deep = |path| {
+            let mut out = Vec::new();
+            let set = HitSet {
+                seed: 3,
+                pixel: 0,
+                path,
+                depth: 1,
+                dim: SobolDim::Light(0),
+            };
+            hit_points(SamplerKind::Sobol, set, 16, &mut None, &mut out);
+            out
+        };
+        assert!(crate::integrator::sobol::is_0m2_net(&deep(12345)));
+        assert_ne!(deep(12345), deep(12346));
     }
 }
