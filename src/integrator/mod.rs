@@ -2,6 +2,7 @@
 //! reference renderer; `wavefront` renders the same images breadth first, tracing rays
 //! in batches from queues.
 
+pub mod adaptive;
 pub mod region;
 pub mod sampling;
 pub mod sobol;

@@ -215,6 +215,7 @@ impl SamplePlan {
 }
 
 /// Everything that turns sample positions into camera rays.
+#[derive(Clone, Copy)]
 pub(crate) struct CameraSampler {
     pub frame: CameraFrame,
     pub lens: LensFrame,
@@ -1085,6 +1086,69 @@ fn render_tile(
         nonfinite_samples,
         stages: StageTimes::default(),
     }
+}
+
+/// Renders eye samples `range` of each listed pixel (`(x, y, range)`, image
+/// coordinates) with the recursive integrator, in parallel over chunks of the list,
+/// each pixel exactly as a render of that `--sample-range` would: the sums of a pixel
+/// do not depend on the chunking or the thread count. `opts.spp` bounds the ranges
+/// (the sample patterns are planned for `opts.spp` eye samples). For the progressive
+/// renderer ([`super::adaptive`]), whose pixels each get their own count.
+pub(crate) fn render_pixels(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    pixels: &[(u32, u32, std::ops::Range<u32>)],
+) -> (Vec<PixelSums>, RayCounts) {
+    let camera = CameraSampler {
+        frame: scene.camera.frame(opts.width, opts.height),
+        lens: LensFrame::new(&scene.camera, &scene.camera_effects),
+        plan: SamplePlan::new(scene, opts),
+    };
+    let chunks: Vec<(Vec<PixelSums>, RayCounts)> = pixels
+        .par_chunks(64)
+        .map_init(Workspace::default, |ws, chunk| {
+            let mut tracer = Tracer {
+                shader: Shader::new(scene, opts, camera.plan),
+                accel,
+                rays: RayCounts::default(),
+                drawn: EffectSamplesDrawn::default(),
+                emitted: std::mem::take(&mut ws.emitted),
+            };
+            let mut sums = Vec::with_capacity(chunk.len());
+            let mut nonfinite = 0;
+            for (x, y, range) in chunk {
+                let mut cam = camera;
+                cam.plan.eye_begin = range.start;
+                cam.plan.eye_end = range.end;
+                let index = *y as u64 * opts.width as u64 + *x as u64;
+                let samples = &mut ws.samples;
+                cam.pixel_samples(opts.seed, index, *x, *y, samples, &mut tracer.drawn);
+                tracer.rays.camera += samples.rays.len() as u64;
+                ws.radiance.clear();
+                for (s, ray) in samples.rays.iter().enumerate() {
+                    let path = cam.plan.first_path() + s as u64;
+                    let l = tracer.radiance(ray, 0, Vec3::ONE, index, path);
+                    ws.radiance.push(l);
+                }
+                sums.push(resolve_pixel(
+                    &cam.plan,
+                    &samples.offsets,
+                    &ws.radiance,
+                    &mut nonfinite,
+                ));
+            }
+            ws.emitted = std::mem::take(&mut tracer.emitted);
+            (sums, tracer.rays)
+        })
+        .collect();
+    let mut rays = RayCounts::default();
+    let mut sums = Vec::with_capacity(pixels.len());
+    for (s, r) in chunks {
+        sums.extend(s);
+        rays += r;
+    }
+    (sums, rays)
 }
 
 impl Tracer<'_> {
