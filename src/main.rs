@@ -124,6 +124,9 @@ struct ConvergeArgs {
     /// Acceleration structure.
     #[arg(long, default_value = "bvh4", value_parser = parse_accel)]
     accel: AccelKind,
+    /// Renders per measurement, the fastest one's seconds reported.
+    #[arg(long, default_value_t = 1)]
+    reps: u32,
 }
 
 #[derive(clap::Args)]
@@ -457,6 +460,7 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
         reference_shadow: args.reference_shadow,
         budgets: args.budgets,
         accel: args.accel,
+        reps: args.reps,
         ..Default::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()

@@ -49,6 +49,9 @@ pub struct ConvergeOptions {
     /// Also measure progressive adaptive rendering ([`adaptive`]) at mean budget `B`
     /// (its seconds include the pilot), and its error at equal time against jittered.
     pub adaptive: bool,
+    /// Renders per measurement; the fastest one's seconds are reported (on a shared
+    /// machine the minimum is the least disturbed).
+    pub reps: u32,
     pub accel: AccelKind,
 }
 
@@ -64,6 +67,7 @@ impl Default for ConvergeOptions {
             samplers: SamplerKind::ALL.to_vec(),
             splits: true,
             adaptive: true,
+            reps: 1,
             accel: AccelKind::Bvh4,
         }
     }
@@ -210,8 +214,12 @@ pub fn run(
             let Some((eye, shadow)) = (s.split)(b) else {
                 continue;
             };
-            let (film, seconds, rays) =
+            let (film, mut seconds, rays) =
                 render_counts(scene, &accel, &base, s.sampler, eye, shadow)?;
+            for _ in 1..opts.reps {
+                let again = render_counts(scene, &accel, &base, s.sampler, eye, shadow)?;
+                seconds = seconds.min(again.1);
+            }
             let r = ConvergeRow {
                 strategy: s.name.clone(),
                 sampler: s.sampler,
@@ -236,7 +244,13 @@ pub fn run(
                 max_mean_spp: Some(b as f64),
                 ..Default::default()
             };
-            let out = adaptive::render(scene, &accel, &o, &a, Instant::now(), |_, _| Ok(()))?;
+            let run = || adaptive::render(scene, &accel, &o, &a, Instant::now(), |_, _| Ok(()));
+            let out = run()?;
+            let mut seconds = out.passes.last().map_or(0.0, |p| p.seconds);
+            for _ in 1..opts.reps {
+                let again = run()?;
+                seconds = seconds.min(again.passes.last().map_or(0.0, |p| p.seconds));
+            }
             let film = out.film;
             let r = ConvergeRow {
                 strategy: ADAPTIVE.into(),
@@ -244,7 +258,7 @@ pub fn run(
                 budget: b,
                 eye: b,
                 shadow: 1,
-                seconds: out.passes.last().map_or(0.0, |p| p.seconds),
+                seconds,
                 rmse: film.rmse(&reference)?,
                 psnr: film.psnr(&reference)?,
                 display_rmse: display_rmse(&film, &reference)?,
@@ -297,6 +311,9 @@ fn equal_time(rows: &[ConvergeRow]) -> Vec<EqualTime> {
         .collect()
 }
 
+/// One number of a row.
+type RowValue = fn(&ConvergeRow) -> f64;
+
 fn slopes(rows: &[ConvergeRow]) -> Vec<Slope> {
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
@@ -311,8 +328,7 @@ fn slopes(rows: &[ConvergeRow]) -> Vec<Slope> {
             let slope = |x: fn(&ConvergeRow) -> f64, y: fn(&ConvergeRow) -> f64| {
                 loglog_slope(&pts.iter().map(|r| (x(r), y(r))).collect::<Vec<_>>())
             };
-            let (time, budget): (fn(&ConvergeRow) -> f64, fn(&ConvergeRow) -> f64) =
-                (|r| r.seconds, |r| r.budget as f64);
+            let (time, budget): (RowValue, RowValue) = (|r| r.seconds, |r| r.budget as f64);
             Slope {
                 strategy: n.to_string(),
                 vs_time: slope(time, |r| r.rmse),

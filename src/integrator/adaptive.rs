@@ -15,9 +15,9 @@
 //!    discarded;
 //! 3. passes `k >= 1`: a deterministic schedule of total sample budgets
 //!    `N_1 = first * pixels`, `N_{k+1} = max(N_k * growth, N_k + pixels)`, shared out
-//!    as `n_p ∝ sqrt(v_p)` (the counts that minimise `Σ v_p / n_p` for a fixed total:
-//!    the estimated squared display error, Lagrange), never fewer than a pixel
-//!    already has. The estimated display RMSE after a pass is `sqrt(mean v_p / n_p)`.
+//!    as `n_p ∝ sqrt(v_p / c_p)`, `c_p` the pixel's rays per pilot sample (the counts
+//!    that minimise the estimated squared display error `Σ v_p / n_p` for a fixed
+//!    time `Σ c_p n_p`, Lagrange), never fewer than a pixel already has. The estimated display RMSE after a pass is `sqrt(mean v_p / n_p)`.
 //!
 //! Unbiased: each pixel's value is the mean of its own samples `0..n_p`, and `n_p`
 //! depends only on the pilot, whose samples are independent of the kept ones and not
@@ -88,7 +88,7 @@ impl AdaptiveOptions {
                 "progressive rendering needs --time-limit or --target-error",
             ));
         }
-        if self.pilot < 2 || self.first == 0 || !(self.growth > 1.0) {
+        if self.pilot < 2 || self.first == 0 || self.growth.is_nan() || self.growth <= 1.0 {
             return Err(Error::parameter(
                 "adaptive",
                 "need pilot >= 2, first >= 1, growth > 1",
@@ -120,6 +120,9 @@ pub struct AdaptiveOutput {
     pub passes: Vec<PassInfo>,
     pub rays: RayCounts,
 }
+
+/// A pixel and the eye samples to render in it.
+type PixelRange = (u32, u32, std::ops::Range<u32>);
 
 /// Separates the pilot's samples from the image's.
 const PILOT_SEED: u64 = 0x9106_7a11_c0ff_ee15;
@@ -159,12 +162,12 @@ pub fn render(
     let refine =
         |target: &[u32], sums: &mut [PixelSums], counts: &mut [u32], rays: &mut RayCounts| -> f64 {
             let t = Instant::now();
-            let work: Vec<(usize, (u32, u32, std::ops::Range<u32>))> = (0..coords.len())
+            let work: Vec<(usize, PixelRange)> = (0..coords.len())
                 .filter(|&p| target[p] > counts[p])
                 .map(|p| (p, (coords[p].0, coords[p].1, counts[p]..target[p])))
                 .collect();
             let list: Vec<_> = work.iter().map(|w| w.1.clone()).collect();
-            let (new, r) = whitted::render_pixels(scene, accel, &o, &list);
+            let (new, _, r) = whitted::render_pixels(scene, accel, &o, &list);
             *rays += r;
             let mut added = 0u64;
             for ((p, range), s) in work.iter().zip(&new) {
@@ -206,12 +209,13 @@ pub fn render(
     {
         return Ok(finish(film_of(&sums), counts, passes, rays));
     }
-    let variance = pilot_variance(scene, accel, &o, &coords, a.pilot, &mut rays);
+    let (variance, cost) = pilot_variance(scene, accel, &o, &coords, a.pilot, &mut rays);
     let mean_v = variance.iter().sum::<f64>() / npix.max(1) as f64;
     // A floor, so that a pixel whose pilot saw no variation still gets samples.
     let weight: Vec<f64> = variance
         .iter()
-        .map(|v| (v + 0.05 * mean_v).sqrt())
+        .zip(&cost)
+        .map(|(v, c)| ((v + 0.05 * mean_v) / c).sqrt())
         .collect();
     let total_w: f64 = weight.iter().sum();
     let estimate = |counts: &[u32]| {
@@ -277,7 +281,8 @@ fn finish(film: Film, counts: Vec<u32>, passes: Vec<PassInfo>, rays: RayCounts) 
 
 /// Each pixel's variance of one sample's displayed value (clamped to [0, 1],
 /// sRGB-encoded; the unbiased sample variance of `n` pilot samples, mean over the
-/// channels), from samples of an independent seed.
+/// channels), from samples of an independent seed; and its cost, the rays per sample
+/// (at least 1).
 fn pilot_variance(
     scene: &Scene,
     accel: &SceneAccel,
@@ -285,15 +290,19 @@ fn pilot_variance(
     coords: &[(u32, u32)],
     n: u32,
     rays: &mut RayCounts,
-) -> Vec<f64> {
+) -> (Vec<f64>, Vec<f64>) {
     let mut p = o.clone();
     p.seed = o.seed ^ PILOT_SEED;
     let mut sum = vec![[0.0f64; 3]; coords.len()];
     let mut sq = vec![[0.0f64; 3]; coords.len()];
+    let mut cost = vec![0.0f64; coords.len()];
     for i in 0..n {
         let list: Vec<_> = coords.iter().map(|&(x, y)| (x, y, i..i + 1)).collect();
-        let (one, r) = whitted::render_pixels(scene, accel, &p, &list);
+        let (one, c, r) = whitted::render_pixels(scene, accel, &p, &list);
         *rays += r;
+        for (k, &c) in c.iter().enumerate() {
+            cost[k] += c as f64 / n as f64;
+        }
         for (k, s) in one.iter().enumerate() {
             let v = s.value();
             for c in 0..3 {
@@ -304,7 +313,8 @@ fn pilot_variance(
         }
     }
     let n = n as f64;
-    sum.iter()
+    let variance = sum
+        .iter()
         .zip(&sq)
         .map(|(s, q)| {
             (0..3)
@@ -312,5 +322,6 @@ fn pilot_variance(
                 .sum::<f64>()
                 / 3.0
         })
-        .collect()
+        .collect();
+    (variance, cost.into_iter().map(|c| c.max(1.0)).collect())
 }

@@ -1093,19 +1093,21 @@ fn render_tile(
 /// each pixel exactly as a render of that `--sample-range` would: the sums of a pixel
 /// do not depend on the chunking or the thread count. `opts.spp` bounds the ranges
 /// (the sample patterns are planned for `opts.spp` eye samples). For the progressive
-/// renderer ([`super::adaptive`]), whose pixels each get their own count.
+/// renderer ([`super::adaptive`]), whose pixels each get their own count. Also
+/// returns the rays each pixel traced (its cost).
 pub(crate) fn render_pixels(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
     pixels: &[(u32, u32, std::ops::Range<u32>)],
-) -> (Vec<PixelSums>, RayCounts) {
+) -> (Vec<PixelSums>, Vec<u64>, RayCounts) {
     let camera = CameraSampler {
         frame: scene.camera.frame(opts.width, opts.height),
         lens: LensFrame::new(&scene.camera, &scene.camera_effects),
         plan: SamplePlan::new(scene, opts),
     };
-    let chunks: Vec<(Vec<PixelSums>, RayCounts)> = pixels
+    type Chunk = (Vec<PixelSums>, Vec<u64>, RayCounts);
+    let chunks: Vec<Chunk> = pixels
         .par_chunks(64)
         .map_init(Workspace::default, |ws, chunk| {
             let mut tracer = Tracer {
@@ -1116,8 +1118,10 @@ pub(crate) fn render_pixels(
                 emitted: std::mem::take(&mut ws.emitted),
             };
             let mut sums = Vec::with_capacity(chunk.len());
+            let mut cost = Vec::with_capacity(chunk.len());
             let mut nonfinite = 0;
             for (x, y, range) in chunk {
+                let before = tracer.rays.total();
                 let mut cam = camera;
                 cam.plan.eye_begin = range.start;
                 cam.plan.eye_end = range.end;
@@ -1137,18 +1141,21 @@ pub(crate) fn render_pixels(
                     &ws.radiance,
                     &mut nonfinite,
                 ));
+                cost.push(tracer.rays.total() - before);
             }
             ws.emitted = std::mem::take(&mut tracer.emitted);
-            (sums, tracer.rays)
+            (sums, cost, tracer.rays)
         })
         .collect();
     let mut rays = RayCounts::default();
     let mut sums = Vec::with_capacity(pixels.len());
-    for (s, r) in chunks {
+    let mut costs = Vec::with_capacity(pixels.len());
+    for (s, c, r) in chunks {
         sums.extend(s);
+        costs.extend(c);
         rays += r;
     }
-    (sums, rays)
+    (sums, costs, rays)
 }
 
 impl Tracer<'_> {
