@@ -1265,4 +1265,31 @@ mod tests {
         assert!(crate::integrator::sobol::is_0m2_net(&deep(12345)));
         assert_ne!(deep(12345), deep(12346));
     }
+
+    /// A round of the first 4 of 16 eye samples (`--sample-range 0..4`, or the first
+    /// progressive pass): with the Sobol sampler their pixel positions are a
+    /// (0,2,2)-net, one in each quarter of the pixel in every elementary shape; the
+    /// jittered pattern (the behaviour before) orders strata row by row, so its first
+    /// 4 all lie in the top row of strata, in every pixel.
+    #[test]
+    fn a_prefix_of_sobol_pixel_positions_is_stratified_and_of_jittered_is_not() {
+        use crate::integrator::sobol::is_0m2_net;
+        let mut pos = Vec::new();
+        for pixel in 0..64 {
+            let set = SobolSet::new(1, pixel, SobolDim::Pixel);
+            let sobol: Vec<_> = (0..4).map(|i| set.point(i)).collect();
+            assert!(is_0m2_net(&sobol), "pixel {pixel}: {sobol:?}");
+            let mut rng = PixelRng::new(1, pixel);
+            fill_2d(
+                SamplerKind::Jittered,
+                16,
+                Dimension::Pixel,
+                true,
+                &mut rng,
+                &mut pos,
+            );
+            assert!(!is_0m2_net(&pos[..4]), "pixel {pixel}: {:?}", &pos[..4]);
+            assert!(pos[..4].iter().all(|p| p.1 < 0.25));
+        }
+    }
 }
