@@ -38,6 +38,7 @@ use crate::error::{Error, Result};
 use crate::film::{Film, PixelSums, linear_to_srgb};
 use crate::scene::Scene;
 use crate::stats::RayCounts;
+use glam::Vec3;
 use std::time::Instant;
 
 /// When to stop and how to schedule passes.
@@ -128,6 +129,54 @@ pub struct AdaptiveOutput {
 /// failed once in a few runs on the loaded 2-core machine; with 1.5 it passed 4 of 4.
 const SAFETY: f64 = 1.5;
 
+/// A pixel's filter sums in f64 (64 bytes, where [`PixelSums`]' exact sums take 600:
+/// the progressive renderer keeps one per pixel of the image). Sums of the same
+/// passes in the same order give the same bits, which is all its determinism needs.
+#[derive(Clone, Copy, Debug, Default)]
+struct Acc {
+    weighted: [f64; 3],
+    weight: f64,
+    plain: [f64; 3],
+    samples: u32,
+}
+
+impl Acc {
+    fn of(s: &PixelSums) -> Acc {
+        Acc {
+            weighted: s.weighted.map(|x| x.to_f64()),
+            weight: s.weight.to_f64(),
+            plain: s.plain.map(|x| x.to_f64()),
+            samples: s.samples,
+        }
+    }
+
+    fn merge(&mut self, o: &Acc) {
+        for c in 0..3 {
+            self.weighted[c] += o.weighted[c];
+            self.plain[c] += o.plain[c];
+        }
+        self.weight += o.weight;
+        self.samples += o.samples;
+    }
+
+    /// As [`PixelSums::value`]: the weighted mean, the plain mean if every weight is
+    /// zero, black without samples.
+    fn value(&self) -> Vec3 {
+        let (num, den) = if self.weight > 0.0 {
+            (&self.weighted, self.weight)
+        } else if self.samples > 0 {
+            (&self.plain, self.samples as f64)
+        } else {
+            return Vec3::ZERO;
+        };
+        Vec3::new(
+            (num[0] / den) as f32,
+            (num[1] / den) as f32,
+            (num[2] / den) as f32,
+        )
+    }
+}
+
 /// A pixel and the eye samples to render in it.
 type PixelRange = (u32, u32, std::ops::Range<u32>);
 
@@ -158,41 +207,40 @@ pub fn render(
         .flat_map(|y| (region.x0..region.x1).map(move |x| (x, y)))
         .collect();
     let npix = coords.len() as u64;
-    let mut sums = vec![PixelSums::default(); coords.len()];
+    let mut sums = vec![Acc::default(); coords.len()];
     let mut counts = vec![0u32; coords.len()];
     let mut rays = RayCounts::default();
     let mut passes = Vec::new();
     let elapsed = || start.elapsed().as_secs_f64();
     let fits = |seconds: f64| a.time_limit.is_none_or(|l| elapsed() + seconds <= l);
 
-    // Renders up to `target[p]` samples in each pixel; the seconds per sample.
-    let refine =
-        |target: &[u32], sums: &mut [PixelSums], counts: &mut [u32], rays: &mut RayCounts| -> f64 {
-            let t = Instant::now();
-            let work: Vec<(usize, PixelRange)> = (0..coords.len())
-                .filter(|&p| target[p] > counts[p])
-                .map(|p| (p, (coords[p].0, coords[p].1, counts[p]..target[p])))
-                .collect();
-            let list: Vec<_> = work.iter().map(|w| w.1.clone()).collect();
-            let (new, _, r) = whitted::render_pixels(scene, accel, &o, &list);
-            *rays += r;
-            let mut added = 0u64;
-            for ((p, range), s) in work.iter().zip(&new) {
-                sums[*p].merge(s);
-                counts[*p] = range.2.end;
-                added += (range.2.end - range.2.start) as u64;
-            }
-            t.elapsed().as_secs_f64() / added.max(1) as f64
-        };
-    let film_of = |sums: &[PixelSums]| {
-        let mut film = Film::new(region.width(), region.height());
-        for (p, s) in sums.iter().enumerate() {
-            let (x, y) = coords[p];
-            film.set(x - region.x0, y - region.y0, s.value());
+    // Renders up to `target[p]` samples in each pixel, updating those pixels of the
+    // film (only the pixels a pass touched are resolved again); the seconds per sample.
+    let refine = |target: &[u32],
+                  sums: &mut [Acc],
+                  counts: &mut [u32],
+                  film: &mut Film,
+                  rays: &mut RayCounts|
+     -> f64 {
+        let t = Instant::now();
+        let work: Vec<(usize, PixelRange)> = (0..coords.len())
+            .filter(|&p| target[p] > counts[p])
+            .map(|p| (p, (coords[p].0, coords[p].1, counts[p]..target[p])))
+            .collect();
+        let list: Vec<_> = work.iter().map(|w| w.1.clone()).collect();
+        let (new, _, r) = whitted::render_pixels(scene, accel, &o, &list, Acc::of);
+        *rays += r;
+        let mut added = 0u64;
+        for ((p, range), s) in work.iter().zip(&new) {
+            sums[*p].merge(s);
+            counts[*p] = range.2.end;
+            added += (range.2.end - range.2.start) as u64;
+            film.set(range.0 - region.x0, range.1 - region.y0, sums[*p].value());
         }
-        film
+        t.elapsed().as_secs_f64() / added.max(1) as f64
     };
-    let mut emit = |pass: u32, sums: &[PixelSums], counts: &[u32], err: Option<f64>| {
+    let mut film = Film::new(region.width(), region.height());
+    let mut emit = |pass: u32, film: &Film, counts: &[u32], err: Option<f64>| {
         let samples: u64 = counts.iter().map(|&c| c as u64).sum();
         let info = PassInfo {
             pass,
@@ -201,19 +249,25 @@ pub fn render(
             estimated_error: err,
             seconds: elapsed(),
         };
-        on_pass(&film_of(sums), &info)?;
+        on_pass(film, &info)?;
         passes.push(info);
         Ok::<_, Error>(())
     };
 
     // Pass 0: one sample everywhere.
-    let mut per_sample = refine(&vec![1; coords.len()], &mut sums, &mut counts, &mut rays);
-    emit(0, &sums, &counts, None)?;
+    let mut per_sample = refine(
+        &vec![1; coords.len()],
+        &mut sums,
+        &mut counts,
+        &mut film,
+        &mut rays,
+    );
+    emit(0, &film, &counts, None)?;
 
     // The pilot, from an independent stream. Where it would not fit in the time
     // left, uniform passes of one more sample per pixel use the time instead.
     if a.max_mean_spp.is_some_and(|m| m <= 1.0) {
-        return Ok(finish(film_of(&sums), counts, passes, rays));
+        return Ok(finish(film, counts, passes, rays));
     }
     if !fits(per_sample * (a.pilot as f64) * npix as f64 * SAFETY) {
         let mut pass = 1;
@@ -222,11 +276,11 @@ pub fn render(
             && counts[0] < MAX_SPP
         {
             let target: Vec<u32> = counts.iter().map(|c| c + 1).collect();
-            per_sample = refine(&target, &mut sums, &mut counts, &mut rays);
-            emit(pass, &sums, &counts, None)?;
+            per_sample = refine(&target, &mut sums, &mut counts, &mut film, &mut rays);
+            emit(pass, &film, &counts, None)?;
             pass += 1;
         }
-        return Ok(finish(film_of(&sums), counts, passes, rays));
+        return Ok(finish(film, counts, passes, rays));
     }
     let (variance, cost) = pilot_variance(scene, accel, &o, &coords, a.pilot, &mut rays);
     let mean_v = variance.iter().sum::<f64>() / npix.max(1) as f64;
@@ -277,8 +331,8 @@ pub fn render(
             if !fits(per_sample * new as f64 * SAFETY) {
                 break;
             }
-            per_sample = refine(&target, &mut sums, &mut counts, &mut rays);
-            emit(pass, &sums, &counts, Some(estimate(&counts)))?;
+            per_sample = refine(&target, &mut sums, &mut counts, &mut film, &mut rays);
+            emit(pass, &film, &counts, Some(estimate(&counts)))?;
             pass += 1;
         } else if capped {
             // The budget's shares, rounded, are all rendered.
@@ -286,7 +340,7 @@ pub fn render(
         }
         budget = (budget * a.growth).max(budget + npix as f64);
     }
-    Ok(finish(film_of(&sums), counts, passes, rays))
+    Ok(finish(film, counts, passes, rays))
 }
 
 fn finish(film: Film, counts: Vec<u32>, passes: Vec<PassInfo>, rays: RayCounts) -> AdaptiveOutput {
@@ -317,13 +371,12 @@ fn pilot_variance(
     let mut cost = vec![0.0f64; coords.len()];
     for i in 0..n {
         let list: Vec<_> = coords.iter().map(|&(x, y)| (x, y, i..i + 1)).collect();
-        let (one, c, r) = whitted::render_pixels(scene, accel, &p, &list);
+        let (one, c, r) = whitted::render_pixels(scene, accel, &p, &list, PixelSums::value);
         *rays += r;
         for (k, &c) in c.iter().enumerate() {
             cost[k] += c as f64 / n as f64;
         }
-        for (k, s) in one.iter().enumerate() {
-            let v = s.value();
+        for (k, &v) in one.iter().enumerate() {
             for c in 0..3 {
                 let d = linear_to_srgb(v[c].clamp(0.0, 1.0)) as f64;
                 sum[k][c] += d;

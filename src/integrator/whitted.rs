@@ -1093,21 +1093,24 @@ fn render_tile(
 /// each pixel exactly as a render of that `--sample-range` would: the sums of a pixel
 /// do not depend on the chunking or the thread count. `opts.spp` bounds the ranges
 /// (the sample patterns are planned for `opts.spp` eye samples). For the progressive
-/// renderer ([`super::adaptive`]), whose pixels each get their own count. Also
-/// returns the rays each pixel traced (its cost).
-pub(crate) fn render_pixels(
+/// renderer ([`super::adaptive`]), whose pixels each get their own count. Each
+/// pixel's sums are handed to `keep` (so that a caller can store less than the exact
+/// sums, which are 600 bytes a pixel). Also returns the rays each pixel traced (its
+/// cost).
+pub(crate) fn render_pixels<T: Send>(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
     pixels: &[(u32, u32, std::ops::Range<u32>)],
-) -> (Vec<PixelSums>, Vec<u64>, RayCounts) {
+    keep: impl Fn(&PixelSums) -> T + Sync,
+) -> (Vec<T>, Vec<u64>, RayCounts) {
     let camera = CameraSampler {
         frame: scene.camera.frame(opts.width, opts.height),
         lens: LensFrame::new(&scene.camera, &scene.camera_effects),
         plan: SamplePlan::new(scene, opts),
     };
-    type Chunk = (Vec<PixelSums>, Vec<u64>, RayCounts);
-    let chunks: Vec<Chunk> = pixels
+    type Chunk<T> = (Vec<T>, Vec<u64>, RayCounts);
+    let chunks: Vec<Chunk<T>> = pixels
         .par_chunks(64)
         .map_init(Workspace::default, |ws, chunk| {
             let mut tracer = Tracer {
@@ -1135,12 +1138,12 @@ pub(crate) fn render_pixels(
                     let l = tracer.radiance(ray, 0, Vec3::ONE, index, path);
                     ws.radiance.push(l);
                 }
-                sums.push(resolve_pixel(
+                sums.push(keep(&resolve_pixel(
                     &cam.plan,
                     &samples.offsets,
                     &ws.radiance,
                     &mut nonfinite,
-                ));
+                )));
                 cost.push(tracer.rays.total() - before);
             }
             ws.emitted = std::mem::take(&mut tracer.emitted);
