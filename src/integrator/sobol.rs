@@ -20,10 +20,10 @@
 //!   permutation that maps every `0..2^k` onto itself: bit `j` of the index is flipped by
 //!   a hash of the bits above it, and never when those are all zero.
 //!
-//! Measured on `scenes/dof_area.toml` (48 x 48, 1 shadow ray per eye sample, display
-//! RMSE against a 512 x 16 jittered reference, `packet-render converge`): 0.00482 at 64
-//! samples against jittered's 0.00627 (1.30x lower), 0.00947 against 0.01205 at 16,
-//! 0.0206 against 0.0259 at 4.
+//! Measured on `scenes/dof_area.toml` (128 x 128, 1 shadow ray per eye sample, display
+//! RMSE against a 1024 x 16 jittered reference, `packet-render converge`,
+//! docs/convergence.md): 0.00348 at 64 samples against jittered's 0.00551 (1.58x
+//! lower), 0.00770 against 0.01140 at 16, 0.01786 against 0.02406 at 4.
 
 /// Which set a point belongs to; each has its own scramble and index shuffle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
