@@ -21,6 +21,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod job;
 pub mod plot;
+pub mod progressive;
 pub mod scene;
 pub mod simd;
 pub mod stats;

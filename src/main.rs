@@ -124,6 +124,9 @@ struct ConvergeArgs {
     /// Acceleration structure.
     #[arg(long, default_value = "bvh4", value_parser = parse_accel)]
     accel: AccelKind,
+    /// Renders per measurement, the fastest one's seconds reported.
+    #[arg(long, default_value_t = 1)]
+    reps: u32,
 }
 
 #[derive(clap::Args)]
@@ -234,6 +237,21 @@ struct RenderArgs {
     /// No progress bar and no stats block.
     #[arg(short, long)]
     quiet: bool,
+    #[command(flatten)]
+    progressive: ProgressiveArgs,
+}
+
+/// Progressive, adaptive rendering (docs/progressive.md): passes until a limit, the
+/// image rewritten after each.
+#[derive(clap::Args)]
+struct ProgressiveArgs {
+    /// Render in passes, adding samples where the estimated error is largest, and stop
+    /// before a pass that would end later than this many seconds after the start.
+    #[arg(long, value_name = "SECONDS")]
+    time_limit: Option<f64>,
+    /// Render in passes until the estimated display RMSE is at most this.
+    #[arg(long, value_name = "E")]
+    target_error: Option<f64>,
 }
 
 /// Distribution ray tracing: sample patterns, filter and per-effect sample counts
@@ -303,6 +321,7 @@ fn main() -> ExitCode {
 }
 
 fn render(args: RenderArgs) -> packet_render::Result<()> {
+    let start = Instant::now();
     let job = RenderJob {
         scene: args.scene,
         output: args.output,
@@ -330,6 +349,9 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
         },
         extra_outputs: args.stats_json.iter().cloned().collect(),
     };
+    if args.progressive.time_limit.is_some() || args.progressive.target_error.is_some() {
+        return render_progressive(&job, &args.progressive, args.quiet, args.stats_json, start);
+    }
     let bar = (!args.quiet).then(progress_bar);
     let report = job.run(bar.as_ref().map(|(_, p)| p.clone()))?;
     if let Some((bar, _)) = bar {
@@ -343,6 +365,42 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
         write_atomic(&path, |out| {
             out.write_all(json.as_bytes())
                 .map_err(|e| packet_render::Error::io(&path, e))
+        })?;
+    }
+    Ok(())
+}
+
+fn render_progressive(
+    job: &RenderJob,
+    p: &ProgressiveArgs,
+    quiet: bool,
+    stats_json: Option<PathBuf>,
+    start: Instant,
+) -> packet_render::Result<()> {
+    let a = packet_render::integrator::adaptive::AdaptiveOptions {
+        time_limit: p.time_limit,
+        target_error: p.target_error,
+        ..Default::default()
+    };
+    let report = packet_render::progressive::run(job, &a, start, |p| {
+        if !quiet {
+            eprintln!(
+                "pass {:>3}: {:.2} s, mean {:.1} spp, estimated display RMSE {}",
+                p.pass,
+                p.seconds,
+                p.mean_spp,
+                p.estimated_error.map_or("-".into(), |e| format!("{e:.5}"))
+            );
+        }
+    })?;
+    if !quiet {
+        eprint!("{}", report.summary());
+    }
+    if let Some(path) = &stats_json {
+        let json = serde_json::to_string_pretty(&report).expect("report serialises");
+        write_atomic(path, |out| {
+            out.write_all(json.as_bytes())
+                .map_err(|e| packet_render::Error::io(path, e))
         })?;
     }
     Ok(())
@@ -409,6 +467,7 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
         reference_shadow: args.reference_shadow,
         budgets: args.budgets,
         accel: args.accel,
+        reps: args.reps,
         ..Default::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()
@@ -429,6 +488,7 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
     );
     println!("{}", report.table());
     println!("{}", report.slope_table());
+    println!("{}", report.equal_time_table());
     report.write_csv(&args.csv)?;
     report.write_plot(
         &args.plot,

@@ -117,7 +117,11 @@ fn estimators_are_unbiased() {
     let mut high = options(&scene, 12, 64);
     high.samples.shadow = 4;
     high.samples.glossy = 4;
-    for sampler in [SamplerKind::Jittered, SamplerKind::Halton] {
+    for sampler in [
+        SamplerKind::Jittered,
+        SamplerKind::Halton,
+        SamplerKind::Sobol,
+    ] {
         high.sampler = sampler;
         let highs: Vec<f64> = (0..4)
             .map(|s| {
@@ -521,16 +525,18 @@ fn converge_report_has_every_strategy() {
         ..Default::default()
     };
     let report = packet_render::bench::converge::run(&scene, &opts, |_| {}).unwrap();
-    // 4 patterns + 1xB at 2 budgets, √Bx√B at both (1 and 4 are squares).
-    assert_eq!(report.rows.len(), 6 * 2);
+    // 5 patterns + 1xB + adaptive at 2 budgets, √Bx√B at both (1 and 4 are squares).
+    assert_eq!(report.rows.len(), 8 * 2);
     assert!(
         report
             .rows
             .iter()
             .all(|r| r.rmse > 0.0 && r.eye * r.shadow == r.budget)
     );
-    assert_eq!(report.slopes.len(), 6);
+    assert_eq!(report.slopes.len(), 8);
     assert!(report.table().contains("halton Bx1"));
+    assert!(report.table().contains("sobol Bx1"));
+    assert!(report.table().contains("adaptive sobol"));
 }
 
 #[test]

@@ -24,11 +24,13 @@
 use crate::accel::{AccelKind, SceneAccel};
 use crate::error::{Error, Result};
 use crate::film::{Film, linear_to_srgb};
+use crate::integrator::adaptive::{self, AdaptiveOptions};
 use crate::integrator::{RenderOptions, SamplerKind, whitted};
 use crate::plot::{Series, loglog_svg};
 use crate::scene::Scene;
 use std::io::Write;
 use std::path::Path;
+use std::time::Instant;
 
 /// What to measure.
 #[derive(Clone, Debug)]
@@ -44,6 +46,12 @@ pub struct ConvergeOptions {
     pub samplers: Vec<SamplerKind>,
     /// Also measure the eye/shadow splits (1 x B, √B x √B).
     pub splits: bool,
+    /// Also measure progressive adaptive rendering ([`adaptive`]) at mean budget `B`
+    /// (its seconds include the pilot), and its error at equal time against jittered.
+    pub adaptive: bool,
+    /// Renders per measurement; the fastest one's seconds are reported (on a shared
+    /// machine the minimum is the least disturbed).
+    pub reps: u32,
     pub accel: AccelKind,
 }
 
@@ -58,6 +66,8 @@ impl Default for ConvergeOptions {
             budgets: vec![1, 4, 16, 64],
             samplers: SamplerKind::ALL.to_vec(),
             splits: true,
+            adaptive: true,
+            reps: 1,
             accel: AccelKind::Bvh4,
         }
     }
@@ -99,6 +109,22 @@ pub struct ConvergeReport {
     pub reference_seconds: f64,
     pub rows: Vec<ConvergeRow>,
     pub slopes: Vec<Slope>,
+    /// Adaptive against jittered `Bx1` at equal seconds, one per adaptive render inside
+    /// the jittered renders' range of seconds.
+    pub equal_time: Vec<EqualTime>,
+}
+
+/// The adaptive strategy's display RMSE against jittered sampling's at the same
+/// seconds: jittered's display RMSE interpolated linearly in log-log between its two
+/// measured renders that bracket the adaptive render's seconds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct EqualTime {
+    pub budget: u32,
+    pub seconds: f64,
+    pub adaptive_display_rmse: f64,
+    pub jittered_display_rmse: f64,
+    /// `adaptive / jittered`: below 1 is better.
+    pub ratio: f64,
 }
 
 /// A strategy: a name and the (sampler, eye, shadow) it uses at budget `b`.
@@ -188,8 +214,12 @@ pub fn run(
             let Some((eye, shadow)) = (s.split)(b) else {
                 continue;
             };
-            let (film, seconds, rays) =
+            let (film, mut seconds, rays) =
                 render_counts(scene, &accel, &base, s.sampler, eye, shadow)?;
+            for _ in 1..opts.reps {
+                let again = render_counts(scene, &accel, &base, s.sampler, eye, shadow)?;
+                seconds = seconds.min(again.1);
+            }
             let r = ConvergeRow {
                 strategy: s.name.clone(),
                 sampler: s.sampler,
@@ -206,12 +236,79 @@ pub fn run(
             rows.push(r);
         }
     }
+    if opts.adaptive {
+        for &b in &opts.budgets {
+            let mut o = base.clone();
+            o.samples.shadow = 1;
+            let a = AdaptiveOptions {
+                max_mean_spp: Some(b as f64),
+                ..Default::default()
+            };
+            let run = || adaptive::render(scene, &accel, &o, &a, Instant::now(), |_, _| Ok(()));
+            let out = run()?;
+            let mut seconds = out.passes.last().map_or(0.0, |p| p.seconds);
+            for _ in 1..opts.reps {
+                let again = run()?;
+                seconds = seconds.min(again.passes.last().map_or(0.0, |p| p.seconds));
+            }
+            let film = out.film;
+            let r = ConvergeRow {
+                strategy: ADAPTIVE.into(),
+                sampler: SamplerKind::Sobol,
+                budget: b,
+                eye: b,
+                shadow: 1,
+                seconds,
+                rmse: film.rmse(&reference)?,
+                psnr: film.psnr(&reference)?,
+                display_rmse: display_rmse(&film, &reference)?,
+                rays: out.rays.total(),
+            };
+            row(&r);
+            rows.push(r);
+        }
+    }
     let slopes = slopes(&rows);
+    let equal_time = equal_time(&rows);
     Ok(ConvergeReport {
         reference_seconds,
         rows,
         slopes,
+        equal_time,
     })
+}
+
+/// Name of the adaptive strategy's rows.
+pub const ADAPTIVE: &str = "adaptive sobol";
+
+fn equal_time(rows: &[ConvergeRow]) -> Vec<EqualTime> {
+    let mut jit: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|r| r.strategy == "jittered Bx1")
+        .map(|r| (r.seconds, r.display_rmse))
+        .collect();
+    jit.sort_by(|a, b| a.0.total_cmp(&b.0));
+    rows.iter()
+        .filter(|r| r.strategy == ADAPTIVE)
+        .filter_map(|r| {
+            let t = r.seconds;
+            let w = jit.windows(2).find(|w| w[0].0 <= t && t <= w[1].0)?;
+            let (x0, x1) = (w[0].0.ln(), w[1].0.ln());
+            let f = if x1 > x0 {
+                (t.ln() - x0) / (x1 - x0)
+            } else {
+                0.0
+            };
+            let j = (w[0].1.ln() + f * (w[1].1.ln() - w[0].1.ln())).exp();
+            Some(EqualTime {
+                budget: r.budget,
+                seconds: t,
+                adaptive_display_rmse: r.display_rmse,
+                jittered_display_rmse: j,
+                ratio: r.display_rmse / j,
+            })
+        })
+        .collect()
 }
 
 /// One number of a row, for fitting slopes.
@@ -310,6 +407,20 @@ impl ConvergeReport {
                 r.rmse,
                 r.psnr,
                 r.display_rmse
+            );
+        }
+        s
+    }
+
+    /// The equal-time comparison as a Markdown table.
+    pub fn equal_time_table(&self) -> String {
+        let mut s = String::from(
+            "| adaptive budget | seconds | adaptive display RMSE | jittered Bx1 at equal time | ratio |\n|---:|---:|---:|---:|---:|\n",
+        );
+        for e in &self.equal_time {
+            s += &format!(
+                "| {} | {:.4} | {:.5} | {:.5} | {:.2} |\n",
+                e.budget, e.seconds, e.adaptive_display_rmse, e.jittered_display_rmse, e.ratio
             );
         }
         s

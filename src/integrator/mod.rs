@@ -2,10 +2,12 @@
 //! reference renderer; `wavefront` renders the same images breadth first, tracing rays
 //! in batches from queues.
 
+pub mod adaptive;
 pub mod budget;
 pub mod region;
 pub mod sampling;
 pub mod shadow;
+pub mod sobol;
 pub mod wavefront;
 pub mod whitted;
 

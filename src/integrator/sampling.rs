@@ -13,8 +13,14 @@
 //! - `random`: independent uniform points;
 //! - `halton`: the Halton sequence (bases 2, 3 for pixels, 5, 7 for the lens, 11 for
 //!   time, 13, 17 for per-hit sets) shifted by a per-set random Cranley-Patterson
-//!   rotation (toroidal shift), so pixels decorrelate and every estimate stays unbiased.
+//!   rotation (toroidal shift), so pixels decorrelate and every estimate stays unbiased;
+//! - `sobol`: per pixel and dimension, an Owen-scrambled Sobol (0,2)-sequence indexed by
+//!   the sample's index in the pixel ([`super::sobol`]): the camera sets and the first
+//!   hit's light points and lobe directions are stratified across all of the pixel's
+//!   samples, and every power-of-two prefix of them too (progressive rendering). Sets
+//!   that belong to no pixel index (deeper hits) are scrambled Sobol sets of their own.
 
+use super::sobol::SobolSet;
 use crate::error::{Error, Result};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_PI_4, PI, TAU};
@@ -31,6 +37,8 @@ pub enum SamplerKind {
     Jittered,
     Random,
     Halton,
+    /// Padded, prefix-stratified Owen-scrambled Sobol ([`super::sobol`]).
+    Sobol,
 }
 
 impl SamplerKind {
@@ -39,6 +47,7 @@ impl SamplerKind {
         SamplerKind::Jittered,
         SamplerKind::Random,
         SamplerKind::Halton,
+        SamplerKind::Sobol,
     ];
 
     pub fn name(self) -> &'static str {
@@ -47,6 +56,7 @@ impl SamplerKind {
             SamplerKind::Jittered => "jittered",
             SamplerKind::Random => "random",
             SamplerKind::Halton => "halton",
+            SamplerKind::Sobol => "sobol",
         }
     }
 }
@@ -224,7 +234,17 @@ pub fn fill_2d(
                 ));
             }
         }
+        SamplerKind::Sobol => {
+            let set = sobol_set_from(rng);
+            out.extend((0..n).map(|i| set.point(i)));
+        }
     }
+}
+
+/// A scrambled Sobol set keyed by three draws of `rng` (a set of its own, for sets
+/// that are not indexed by the sample's index in its pixel).
+fn sobol_set_from(rng: &mut PixelRng) -> SobolSet {
+    SobolSet::from_keys([rng.next_u64(), rng.next_u64(), rng.next_u64()])
 }
 
 /// Fills `out` with `n` values in `[0, 1)` of pattern `kind` (grid: cell centres,
@@ -248,6 +268,10 @@ pub fn fill_1d(kind: SamplerKind, n: u32, dim: Dimension, rng: &mut PixelRng, ou
             let r = rng.next_f32();
             let b = dim.bases().0;
             out.extend((0..n).map(|i| rotate(radical_inverse(b, i), r)));
+        }
+        SamplerKind::Sobol => {
+            let set = sobol_set_from(rng);
+            out.extend((0..n).map(|i| set.value(i)));
         }
     }
 }
@@ -576,7 +600,8 @@ mod tests {
             "halton".parse::<SamplerKind>().unwrap(),
             SamplerKind::Halton
         );
-        assert!("sobol".parse::<SamplerKind>().is_err());
+        assert_eq!("sobol".parse::<SamplerKind>().unwrap(), SamplerKind::Sobol);
+        assert!("owen".parse::<SamplerKind>().is_err());
         assert_eq!(
             "gaussian".parse::<FilterKind>().unwrap(),
             FilterKind::Gaussian

@@ -33,6 +33,7 @@
 use super::sampling::{
     Dimension, PixelRng, decorrelate, fill_1d, fill_2d, sample_aperture, sample_phong_lobe,
 };
+use super::sobol::{SobolDim, SobolSet};
 use super::{FilterKind, RenderOptions, RenderOutput, SamplerKind, shadow};
 use crate::accel::{PrimRef, SceneAccel, SceneHit};
 use crate::film::{Film, PixelSums, partial};
@@ -214,6 +215,7 @@ impl SamplePlan {
 }
 
 /// Everything that turns sample positions into camera rays.
+#[derive(Clone, Copy)]
 pub(crate) struct CameraSampler {
     pub frame: CameraFrame,
     pub lens: LensFrame,
@@ -254,6 +256,76 @@ impl CameraSampler {
     ) {
         let plan = self.plan;
         let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
+        // The Sobol sampler computes each point from its index (only the rendered
+        // ones); the others draw every set of the pixel, in a fixed order.
+        let sobol = (plan.sampler == SamplerKind::Sobol).then(|| {
+            [SobolDim::Pixel, SobolDim::Lens, SobolDim::Time].map(|d| SobolSet::new(seed, index, d))
+        });
+        if sobol.is_some() {
+            let rendered = (plan.eye_end - plan.eye_begin) as u64;
+            if plan.lens > 0 {
+                drawn.lens += rendered * lens_n as u64;
+            }
+            if plan.time > 0 {
+                drawn.time += rendered * (lens_n * time_n) as u64;
+            }
+        } else {
+            self.draw_sets(seed, index, out, drawn);
+        }
+        // Box: samples inside the pixel; otherwise over the filter's footprint.
+        let footprint = 2.0 * plan.filter.radius();
+        out.offsets.clear();
+        out.rays.clear();
+        for e in plan.eye_begin as usize..plan.eye_end as usize {
+            let (sx, sy) = match &sobol {
+                Some(sets) => sets[0].point(e as u32),
+                None => out.pixel_pos[e],
+            };
+            let (ox, oy) = if plan.filter == FilterKind::Box {
+                (sx, sy)
+            } else {
+                (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
+            };
+            out.offsets.push((ox, oy));
+            let pinhole = self.frame.ray(x as f32 + ox, y as f32 + oy);
+            for l in 0..lens_n {
+                let lens_index = e * lens_n as usize + l as usize;
+                let lens_point = (plan.lens > 0).then(|| {
+                    let (u, v) = match &sobol {
+                        Some(sets) => sets[1].point(lens_index as u32),
+                        None => out.lens_pos[lens_index],
+                    };
+                    sample_aperture(u, v, self.lens.blades, self.lens.rotation)
+                });
+                for t in 0..time_n {
+                    let time = if plan.time > 0 {
+                        let k = lens_index * time_n as usize + t as usize;
+                        self.lens.time(match &sobol {
+                            Some(sets) => sets[2].value(k as u32),
+                            None => out.times[k],
+                        })
+                    } else {
+                        self.lens.shutter[0]
+                    };
+                    out.rays
+                        .push(self.lens.ray(&self.frame, pinhole, lens_point, time));
+                }
+            }
+        }
+    }
+
+    /// Draws every camera set of the pixel (all `eye` samples) from the pixel's own
+    /// stream, for the patterns that are drawn as whole sets. Draw order is fixed:
+    /// pixel positions, lens points, shutter times.
+    fn draw_sets(
+        &self,
+        seed: u64,
+        index: u64,
+        out: &mut PixelSamples,
+        drawn: &mut EffectSamplesDrawn,
+    ) {
+        let plan = self.plan;
+        let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
         let rng = &mut PixelRng::new(seed, index);
         fill_2d(
             plan.sampler,
@@ -281,43 +353,6 @@ impl CameraSampler {
             fill_1d(plan.sampler, n, Dimension::Time, rng, &mut out.times);
             decorrelate(plan.sampler, &mut out.times, rng);
             drawn.time += n as u64;
-        }
-        // Box: samples inside the pixel; otherwise over the filter's footprint.
-        let footprint = 2.0 * plan.filter.radius();
-        out.offsets.clear();
-        out.rays.clear();
-        let rendered = plan.eye_begin as usize..plan.eye_end as usize;
-        for (e, &(sx, sy)) in out
-            .pixel_pos
-            .iter()
-            .enumerate()
-            .take(rendered.end)
-            .skip(rendered.start)
-        {
-            let (ox, oy) = if plan.filter == FilterKind::Box {
-                (sx, sy)
-            } else {
-                (0.5 + (sx - 0.5) * footprint, 0.5 + (sy - 0.5) * footprint)
-            };
-            out.offsets.push((ox, oy));
-            let pinhole = self.frame.ray(x as f32 + ox, y as f32 + oy);
-            for l in 0..lens_n {
-                let lens_index = e * lens_n as usize + l as usize;
-                let lens_point = (plan.lens > 0).then(|| {
-                    let (u, v) = out.lens_pos[lens_index];
-                    sample_aperture(u, v, self.lens.blades, self.lens.rotation)
-                });
-                for t in 0..time_n {
-                    let time = if plan.time > 0 {
-                        self.lens
-                            .time(out.times[lens_index * time_n as usize + t as usize])
-                    } else {
-                        self.lens.shutter[0]
-                    };
-                    out.rays
-                        .push(self.lens.ray(&self.frame, pinhole, lens_point, time));
-                }
-            }
         }
     }
 }
@@ -542,6 +577,42 @@ pub(crate) struct TileResult {
     pub stages: StageTimes,
 }
 
+/// Which per-hit set a shading point draws: its pixel, path and depth, and what the
+/// points are for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HitSet {
+    pub seed: u64,
+    pub pixel: u64,
+    pub path: u64,
+    pub depth: u32,
+    pub dim: SobolDim,
+}
+
+/// Fills `out` with the `n` points of a per-hit set (light points, lobe directions).
+/// With the Sobol sampler, at the first hit of a camera ray (`depth == 0`, where the
+/// path identity is the camera ray's index `c` in its pixel) the points are
+/// `c n .. c n + n` of the pixel's sequence for `dim`: one set stratified across all of
+/// the pixel's camera rays, so that one shadow point per eye sample still covers the
+/// light evenly over the pixel. Everywhere else the set is drawn from the shading
+/// point's own stream ([`path_rng`], created on first use).
+pub(crate) fn hit_points(
+    sampler: SamplerKind,
+    set: HitSet,
+    n: u32,
+    stream: &mut Option<PixelRng>,
+    out: &mut Vec<(f32, f32)>,
+) {
+    if sampler == SamplerKind::Sobol && set.depth == 0 {
+        let seq = SobolSet::new(set.seed, set.pixel, set.dim);
+        let first = (set.path as u32).wrapping_mul(n);
+        out.clear();
+        out.extend((0..n).map(|i| seq.point(first.wrapping_add(i))));
+        return;
+    }
+    let rng = stream.get_or_insert_with(|| path_rng(set.seed, set.pixel, set.path));
+    fill_2d(sampler, n, Dimension::Hit, false, rng, out);
+}
+
 /// The random stream of the shading point reached by path `path` of pixel `pixel`.
 /// Keyed by identity, not by visiting order, so a depth-first and a breadth-first
 /// traversal of the same ray tree draw the same numbers. Distinct from the pixel's own
@@ -674,6 +745,7 @@ impl Shader<'_> {
                 time,
                 si,
                 albedo,
+                depth,
                 &mut stream,
                 pixel,
                 path,
@@ -719,7 +791,15 @@ impl Shader<'_> {
                 let axis = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
                     reflect(d, si.n_geometric)
                 });
-                let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
+                let n = self.lobe_points(
+                    depth,
+                    SobolDim::Glossy,
+                    &mut stream,
+                    pixel,
+                    path,
+                    out,
+                    drawn,
+                );
                 let weight = m.glossy / n as f32;
                 for i in 0..n as usize {
                     let (u, v) = out.points[i];
@@ -776,7 +856,15 @@ impl Shader<'_> {
                     let origin =
                         offset_ray_origin(si.p, si.p_error, si.n_geometric, -si.n_geometric);
                     if m.is_translucent() {
-                        let n = self.lobe_points(depth, &mut stream, pixel, path, out, drawn);
+                        let n = self.lobe_points(
+                            depth,
+                            SobolDim::Translucency,
+                            &mut stream,
+                            pixel,
+                            path,
+                            out,
+                            drawn,
+                        );
                         let w = weight / n as f32;
                         for i in 0..n as usize {
                             let (u, v) = out.points[i];
@@ -798,9 +886,11 @@ impl Shader<'_> {
 
     /// Lobe sample points in `out.points`: `glossy` stratified ones at the first hit
     /// of a camera ray, one deeper down (the ray tree stays linear). Returns the count.
+    #[allow(clippy::too_many_arguments)]
     fn lobe_points(
         &self,
         depth: u32,
+        dim: SobolDim,
         stream: &mut Option<PixelRng>,
         pixel: u64,
         path: u64,
@@ -808,15 +898,14 @@ impl Shader<'_> {
         drawn: &mut EffectSamplesDrawn,
     ) -> u32 {
         let n = if depth == 0 { self.plan.glossy } else { 1 };
-        let rng = stream.get_or_insert_with(|| path_rng(self.seed, pixel, path));
-        fill_2d(
-            self.plan.sampler,
-            n,
-            Dimension::Hit,
-            false,
-            rng,
-            &mut out.points,
-        );
+        let set = HitSet {
+            seed: self.seed,
+            pixel,
+            path,
+            depth,
+            dim,
+        };
+        hit_points(self.plan.sampler, set, n, stream, &mut out.points);
         drawn.glossy += n as u64;
         n
     }
@@ -832,6 +921,7 @@ impl Shader<'_> {
         time: f32,
         si: &SurfaceInteraction,
         albedo: Vec3,
+        depth: u32,
         stream: &mut Option<PixelRng>,
         pixel: u64,
         path: u64,
@@ -910,14 +1000,18 @@ impl Shader<'_> {
                     // The mean over `shadow` stratified points of the light of
                     // `f · L dω / pdf`.
                     let n = self.plan.shadow;
-                    let rng = stream.get_or_insert_with(|| path_rng(self.seed, pixel, path));
                     let mut points = std::mem::take(&mut out.points);
-                    fill_2d(
+                    hit_points(
                         self.plan.sampler,
+                        HitSet {
+                            seed: self.seed,
+                            pixel,
+                            path,
+                            depth,
+                            dim: SobolDim::Light(index),
+                        },
                         n,
-                        Dimension::Hit,
-                        false,
-                        rng,
+                        stream,
                         &mut points,
                     );
                     drawn.light += n as u64;
@@ -976,14 +1070,7 @@ fn render_tile(
     tile: Tile,
 ) -> TileResult {
     let plan = camera.plan;
-    let mut tracer = Tracer {
-        shader: Shader::new(scene, opts, plan),
-        accel,
-        transmits: shadow::transmits(scene, opts.transmitted_shadows),
-        rays: RayCounts::default(),
-        drawn: EffectSamplesDrawn::default(),
-        emitted: std::mem::take(&mut ws.emitted),
-    };
+    let mut tracer = Tracer::new(scene, accel, opts, plan, ws);
     let mut pixels = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
     let mut nonfinite_samples = 0;
     for y in tile.y0..tile.y1 {
@@ -1017,7 +1104,92 @@ fn render_tile(
     }
 }
 
+/// Renders eye samples `range` of each listed pixel (`(x, y, range)`, image
+/// coordinates) with the recursive integrator, in parallel over chunks of the list,
+/// each pixel exactly as a render of that `--sample-range` would: the sums of a pixel
+/// do not depend on the chunking or the thread count. `opts.spp` bounds the ranges
+/// (the sample patterns are planned for `opts.spp` eye samples). For the progressive
+/// renderer ([`super::adaptive`]), whose pixels each get their own count. Each
+/// pixel's sums are handed to `keep` (so that a caller can store less than the exact
+/// sums, which are 600 bytes a pixel). Also returns the rays each pixel traced (its
+/// cost).
+pub(crate) fn render_pixels<T: Send>(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    pixels: &[(u32, u32, std::ops::Range<u32>)],
+    keep: impl Fn(&PixelSums) -> T + Sync,
+) -> (Vec<T>, Vec<u64>, RayCounts) {
+    let camera = CameraSampler {
+        frame: scene.camera.frame(opts.width, opts.height),
+        lens: LensFrame::new(&scene.camera, &scene.camera_effects),
+        plan: SamplePlan::new(scene, opts),
+    };
+    type Chunk<T> = (Vec<T>, Vec<u64>, RayCounts);
+    let chunks: Vec<Chunk<T>> = pixels
+        .par_chunks(64)
+        .map_init(Workspace::default, |ws, chunk| {
+            let mut tracer = Tracer::new(scene, accel, opts, camera.plan, ws);
+            let mut sums = Vec::with_capacity(chunk.len());
+            let mut cost = Vec::with_capacity(chunk.len());
+            let mut nonfinite = 0;
+            for (x, y, range) in chunk {
+                let before = tracer.rays.total();
+                let mut cam = camera;
+                cam.plan.eye_begin = range.start;
+                cam.plan.eye_end = range.end;
+                let index = *y as u64 * opts.width as u64 + *x as u64;
+                let samples = &mut ws.samples;
+                cam.pixel_samples(opts.seed, index, *x, *y, samples, &mut tracer.drawn);
+                tracer.rays.camera += samples.rays.len() as u64;
+                ws.radiance.clear();
+                for (s, ray) in samples.rays.iter().enumerate() {
+                    let path = cam.plan.first_path() + s as u64;
+                    let l = tracer.radiance(ray, 0, Vec3::ONE, index, path);
+                    ws.radiance.push(l);
+                }
+                sums.push(keep(&resolve_pixel(
+                    &cam.plan,
+                    &samples.offsets,
+                    &ws.radiance,
+                    &mut nonfinite,
+                )));
+                cost.push(tracer.rays.total() - before);
+            }
+            ws.emitted = std::mem::take(&mut tracer.emitted);
+            (sums, cost, tracer.rays)
+        })
+        .collect();
+    let mut rays = RayCounts::default();
+    let mut sums = Vec::with_capacity(pixels.len());
+    let mut costs = Vec::with_capacity(pixels.len());
+    for (s, c, r) in chunks {
+        sums.extend(s);
+        costs.extend(c);
+        rays += r;
+    }
+    (sums, costs, rays)
+}
+
 impl Tracer<'_> {
+    /// A tracer for one worker, borrowing the worker's reusable emission buffers.
+    fn new<'a>(
+        scene: &'a Scene,
+        accel: &'a SceneAccel,
+        opts: &RenderOptions,
+        plan: SamplePlan,
+        ws: &mut Workspace,
+    ) -> Tracer<'a> {
+        Tracer {
+            shader: Shader::new(scene, opts, plan),
+            accel,
+            transmits: shadow::transmits(scene, opts.transmitted_shadows),
+            rays: RayCounts::default(),
+            drawn: EffectSamplesDrawn::default(),
+            emitted: std::mem::take(&mut ws.emitted),
+        }
+    }
+
     /// Radiance arriving along `ray` by path `path` of pixel `pixel`. `throughput` is
     /// the product of the weights from the camera to this ray, for the contribution
     /// cutoff.
@@ -1073,5 +1245,89 @@ fn scatter_dir(dir: Vec3, n_geometric: Vec3, fallback: impl FnOnce() -> Vec3) ->
         dir
     } else {
         fallback()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first-hit light points of a pixel's 16 camera rays, one each: with the
+    /// Sobol sampler they form a (0,4,2)-net (one point in every elementary interval
+    /// of area 1/16), so the light is covered evenly across the pixel. The jittered
+    /// sampler (the behaviour before the Sobol sampler) draws each camera ray's single
+    /// point on its own, which is checked to fail the same test in most pixels.
+    #[test]
+    fn sobol_light_points_are_stratified_across_the_pixels_camera_rays() {
+        let points = |sampler, pixel| -> Vec<(f32, f32)> {
+            let mut out = Vec::new();
+            (0..16u64)
+                .map(|path| {
+                    let set = HitSet {
+                        seed: 3,
+                        pixel,
+                        path,
+                        depth: 0,
+                        dim: SobolDim::Light(0),
+                    };
+                    hit_points(sampler, set, 1, &mut None, &mut out);
+                    out[0]
+                })
+                .collect()
+        };
+        let pixels = 64;
+        for p in 0..pixels {
+            let pts = points(SamplerKind::Sobol, p);
+            assert!(
+                crate::integrator::sobol::is_0m2_net(&pts),
+                "pixel {p}: {pts:?}"
+            );
+        }
+        let jittered_nets = (0..pixels)
+            .filter(|&p| crate::integrator::sobol::is_0m2_net(&points(SamplerKind::Jittered, p)))
+            .count();
+        assert!(jittered_nets < 4, "{jittered_nets} jittered nets");
+        // Deeper hits keep a set of their own per shading point.
+        let deep = |path| {
+            let mut out = Vec::new();
+            let set = HitSet {
+                seed: 3,
+                pixel: 0,
+                path,
+                depth: 1,
+                dim: SobolDim::Light(0),
+            };
+            hit_points(SamplerKind::Sobol, set, 16, &mut None, &mut out);
+            out
+        };
+        assert!(crate::integrator::sobol::is_0m2_net(&deep(12345)));
+        assert_ne!(deep(12345), deep(12346));
+    }
+
+    /// A round of the first 4 of 16 eye samples (`--sample-range 0..4`, or the first
+    /// progressive pass): with the Sobol sampler their pixel positions are a
+    /// (0,2,2)-net, one in each quarter of the pixel in every elementary shape; the
+    /// jittered pattern (the behaviour before) orders strata row by row, so its first
+    /// 4 all lie in the top row of strata, in every pixel.
+    #[test]
+    fn a_prefix_of_sobol_pixel_positions_is_stratified_and_of_jittered_is_not() {
+        use crate::integrator::sobol::is_0m2_net;
+        let mut pos = Vec::new();
+        for pixel in 0..64 {
+            let set = SobolSet::new(1, pixel, SobolDim::Pixel);
+            let sobol: Vec<_> = (0..4).map(|i| set.point(i)).collect();
+            assert!(is_0m2_net(&sobol), "pixel {pixel}: {sobol:?}");
+            let mut rng = PixelRng::new(1, pixel);
+            fill_2d(
+                SamplerKind::Jittered,
+                16,
+                Dimension::Pixel,
+                true,
+                &mut rng,
+                &mut pos,
+            );
+            assert!(!is_0m2_net(&pos[..4]), "pixel {pixel}: {:?}", &pos[..4]);
+            assert!(pos[..4].iter().all(|p| p.1 < 0.25));
+        }
     }
 }

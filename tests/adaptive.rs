@@ -1,0 +1,249 @@
+//! Progressive, adaptive rendering (docs/progressive.md): unbiased (the mean over many
+//! seeds matches a high-sample reference, pixel by pixel), deterministic for a seed
+//! whatever the thread count, samples where the error is, and the CLI's
+//! `--time-limit` keeps to its limit while writing a valid image every pass.
+
+use packet_render::accel::{AccelKind, SceneAccel};
+use packet_render::film::{Film, luminance};
+use packet_render::integrator::adaptive::{self, AdaptiveOptions, AdaptiveOutput};
+use packet_render::integrator::{RenderOptions, SamplerKind, whitted};
+use packet_render::scene::Scene;
+use packet_render::scene::load::load_scene;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+fn scene(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+}
+
+/// Depth of field and an area light, 1 shadow ray per eye sample.
+fn setup(size: u32) -> (Scene, SceneAccel, RenderOptions) {
+    let scene = load_scene(&scene("dof_area.toml")).unwrap();
+    let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+    let mut opts = RenderOptions::from_scene(&scene);
+    opts.width = size;
+    opts.height = size;
+    opts.samples.shadow = 1;
+    opts.samples.lens = 1;
+    (scene, accel, opts)
+}
+
+fn budget(mean_spp: f64) -> AdaptiveOptions {
+    AdaptiveOptions {
+        max_mean_spp: Some(mean_spp),
+        ..Default::default()
+    }
+}
+
+fn run(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    a: &AdaptiveOptions,
+) -> AdaptiveOutput {
+    adaptive::render(scene, accel, opts, a, Instant::now(), |_, _| Ok(())).unwrap()
+}
+
+fn lum(f: &Film) -> Vec<f64> {
+    f.pixels.iter().map(|p| luminance(*p) as f64).collect()
+}
+
+/// Per pixel, the mean of the adaptive estimate over `S` seeds against a jittered
+/// 4096-sample reference: `z_p = (mean_p - ref_p) / (s_p / √S)` with `s_p` the
+/// pixels' standard deviation over the seeds. For an unbiased estimator `z_p` is
+/// t-distributed (S - 1 dof, E[z²] = (S-1)/(S-3) ≈ 1.07 at S = 32), and the mean of
+/// `z²` over the `n` pixels that vary has standard deviation about `sqrt(2 / n)`
+/// (more with heavy tails); the reference's own noise (4096 stratified samples against
+/// the 32 x 8 of the means) adds at most 1/16 to the variance. Tolerance: mean z² <
+/// 1.07 * (1 + 1/16) + 5 * sqrt(2 / n). A bias of a fifth of the seeds' standard error
+/// in every pixel would not be seen; one of a standard error would (mean z² ≈ 2).
+#[test]
+fn adaptive_estimates_are_unbiased_pixel_by_pixel() {
+    let (scene, accel, mut opts) = setup(12);
+    let seeds = 32u64;
+    let mut sum = vec![0.0f64; 144];
+    let mut sq = vec![0.0f64; 144];
+    let mut spread = 0u32;
+    for s in 0..seeds {
+        opts.seed = 100 + s;
+        let out = run(&scene, &accel, &opts, &budget(8.0));
+        let (lo, hi) = (
+            out.counts.iter().min().unwrap(),
+            out.counts.iter().max().unwrap(),
+        );
+        spread = spread.max(hi - lo);
+        for (p, v) in lum(&out.film).into_iter().enumerate() {
+            sum[p] += v;
+            sq[p] += v * v;
+        }
+    }
+    // The allocation is adaptive: counts differ between pixels.
+    assert!(spread >= 8, "sample counts spread only {spread}");
+    let mut r = opts.clone();
+    r.sampler = SamplerKind::Jittered;
+    r.spp = 4096;
+    r.seed = 9;
+    let reference = lum(&whitted::render(&scene, &accel, &r).film);
+    let n = seeds as f64;
+    let mut z2 = Vec::new();
+    let mut constant = 0;
+    for p in 0..144 {
+        let mean = sum[p] / n;
+        let var = (sq[p] - sum[p] * sum[p] / n) / (n - 1.0);
+        if var > 1e-12 {
+            z2.push((mean - reference[p]).powi(2) / (var / n));
+        } else {
+            // Every seed rendered this pixel alike (the background, or an umbra whose
+            // few samples all missed the light): no standard error to test against;
+            // shown, not tested (a 4096-sample reference can see a rare event that
+            // 32 x 1-2 samples miss, e.g. 0.00569 against 0.00606 in one umbra pixel).
+            constant += 1;
+            eprintln!("constant pixel {p}: {mean} vs reference {}", reference[p]);
+        }
+    }
+    let k = z2.len() as f64;
+    let mean_z2 = z2.iter().sum::<f64>() / k;
+    let bound = 1.07 * (1.0 + 1.0 / 16.0) + 5.0 * (2.0 / k).sqrt();
+    eprintln!("mean z² {mean_z2:.3} over {k} pixels (bound {bound:.3}), {constant} constant");
+    assert!(k > 50.0, "only {k} pixels vary");
+    assert!(mean_z2 < bound, "mean z² {mean_z2:.3} >= {bound:.3}");
+}
+
+/// Every pass's image and the counts are a function of the seed: the same with 1
+/// and 2 threads; the estimated error falls pass by pass and the render stops at
+/// the first pass that reaches the target.
+#[test]
+fn passes_are_deterministic_and_stop_at_the_target_error() {
+    let (scene, accel, mut opts) = setup(16);
+    opts.seed = 5;
+    let a = AdaptiveOptions {
+        target_error: Some(0.02),
+        ..Default::default()
+    };
+    let in_pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let mut films = Vec::new();
+                let out = adaptive::render(&scene, &accel, &opts, &a, Instant::now(), |f, _| {
+                    films.push(f.clone());
+                    Ok(())
+                })
+                .unwrap();
+                (films, out)
+            })
+    };
+    let (films1, out1) = in_pool(1);
+    let (films2, out2) = in_pool(2);
+    assert_eq!(films1, films2);
+    assert_eq!(out1.counts, out2.counts);
+    assert!(films1.len() >= 3, "{} passes", films1.len());
+    assert_eq!(films1.last().unwrap(), &out1.film);
+    let errors: Vec<f64> = out1
+        .passes
+        .iter()
+        .filter_map(|p| p.estimated_error)
+        .collect();
+    assert!(errors.windows(2).all(|w| w[1] < w[0]), "{errors:?}");
+    let last = *errors.last().unwrap();
+    assert!(last <= 0.02, "{errors:?}");
+    assert!(errors[errors.len() - 2] > 0.02, "{errors:?}");
+    // Each pass's samples are added on top: counts never fall.
+    assert!(out1.passes.windows(2).all(|w| w[1].samples > w[0].samples));
+}
+
+fn bin(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_packet-render"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+/// `--time-limit 2` on a slow scene (dof_area at 640 x 480 with 16 shadow points per
+/// hit: 7.1 s of wall time for its full sample count, test-profile binary, 2 threads)
+/// stops early and writes a complete image, atomically. What is asserted is that the
+/// limit ended the render before all samples were drawn; the wall time is printed, not
+/// asserted (timings are benchmarks here, not tests: on a loaded 2-core machine pass 0
+/// alone took 2.5 s once). The criterion, the image within 2.5 s of wall time, is
+/// measured in docs/progressive.md.
+#[test]
+fn cli_time_limit_writes_an_image_within_the_limit() {
+    let dir = std::env::temp_dir().join(format!("packet-render-adaptive-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("progressive.png");
+    let s = scene("dof_area.toml").display().to_string();
+    let t = Instant::now();
+    let o = bin(&[
+        "render",
+        &s,
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "640",
+        "--height",
+        "480",
+        "--shadow-samples",
+        "16",
+        "--time-limit",
+        "2",
+    ]);
+    let wall = t.elapsed();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    eprintln!("--time-limit 2: {wall:?} of wall time");
+    assert!(stderr.contains("pass   0"), "{stderr}");
+    // "mean X spp": stopped by the limit, short of the scene's 16 samples per pixel.
+    let mean_spp: f64 = stderr
+        .split("mean ")
+        .nth(1)
+        .and_then(|r| r.split(" spp").next())
+        .and_then(|x| x.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no mean spp in {stderr}"));
+    assert!(
+        mean_spp < 16.0,
+        "the limit did not stop the render: {stderr}"
+    );
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (640, 480));
+    // No temporary file left next to the image.
+    let names: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(names.len(), 1, "{names:?}");
+
+    // Bad input: clear errors, nothing written.
+    for (args, needle) in [
+        (
+            vec!["--time-limit", "0"],
+            "time-limit must be a positive number",
+        ),
+        (vec!["--time-limit", "1", "--sampler", "jittered"], "sobol"),
+        (
+            vec!["--target-error", "nan"],
+            "target-error must be a positive number",
+        ),
+    ] {
+        let bad = dir.join("bad.png");
+        let mut all = vec![
+            "render",
+            &s,
+            "-o",
+            bad.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ];
+        all.extend(args);
+        let o = bin(&all);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success());
+        assert!(stderr.contains(needle), "{stderr}");
+        assert!(!bad.exists());
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
