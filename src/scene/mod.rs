@@ -8,6 +8,7 @@
 //! can reach the renderer.
 
 mod camera;
+mod camera_override;
 mod checks;
 mod light;
 pub mod load;
@@ -16,6 +17,7 @@ mod motion;
 pub mod procedural;
 
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
+pub use camera_override::{CameraOverrides, Side, UpAxis, parse_vec3};
 pub use checks::nothing_visible_warning;
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
