@@ -286,6 +286,10 @@ struct CameraArgs {
     /// front, back, left, right or top.
     #[arg(long, value_name = "SIDE", value_parser = parse_side)]
     look_from_side: Option<packet_render::scene::Side>,
+    /// Orthographic camera with this image height in world units (TOML `projection =
+    /// "orthographic"`, `height`).
+    #[arg(long, value_name = "HEIGHT", value_parser = parse_f32_like_toml)]
+    ortho: Option<f32>,
 }
 
 impl CameraArgs {
@@ -297,6 +301,7 @@ impl CameraArgs {
             fov: self.fov,
             up_axis: self.up_axis,
             side: self.look_from_side,
+            ortho: self.ortho,
         }
     }
 }

@@ -599,6 +599,11 @@ fn bad_camera_flags_are_refused_before_work() {
         &out,
         "--eye must be three finite",
     );
+    assert_fails(
+        &[&s, "--ortho", "0"],
+        &out,
+        "orthographic height must be finite and > 0",
+    );
     // malformed values are clap's usage errors (exit 2) naming the flag
     for args in [
         ["--eye", "1,2"],
@@ -610,4 +615,44 @@ fn bad_camera_flags_are_refused_before_work() {
         assert!(stderr(&o).contains(args[0]), "{args:?}: {}", stderr(&o));
         assert!(!out.exists());
     }
+}
+
+#[test]
+fn ortho_flag_matches_the_toml_orthographic_camera() {
+    let dir = tmp_dir("camera-ortho");
+    let body = "[render]\nwidth = 32\nheight = 24\nspp = 1\nmax_depth = 3\n\n[[generator]]\ntype = \"whitted_room\"\n";
+    let plain = dir.join("plain.toml");
+    std::fs::write(&plain, body).unwrap();
+    let ortho = dir.join("ortho.toml");
+    std::fs::write(
+        &ortho,
+        format!("{body}\n[camera]\neye = [0, 1, 4]\ntarget = [0, 0.5, 0]\nprojection = \"orthographic\"\nheight = 3.3\n"),
+    )
+    .unwrap();
+    let render = |scene: &Path, name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut a = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ];
+        a.extend_from_slice(extra);
+        let o = run(&a);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        std::fs::read(out).unwrap()
+    };
+    let from_toml = render(&ortho, "t.hdr", &[]);
+    let cam = ["--eye", "0,1,4", "--target", "0,0.5,0"];
+    let mut flags = cam.to_vec();
+    flags.extend_from_slice(&["--ortho", "3.3"]);
+    assert!(
+        render(&plain, "f.hdr", &flags) == from_toml,
+        "--ortho differs from TOML"
+    );
+    assert!(
+        render(&plain, "p.hdr", &cam) != from_toml,
+        "perspective looks the same"
+    );
 }

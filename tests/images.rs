@@ -935,3 +935,60 @@ fn low_poly_smooth_sphere_does_not_shadow_its_lit_side() {
         "{shadowed} of {lit} lit-side pixels are shadowed by the mesh's own facets"
     );
 }
+
+// ---------------------------------------------------------------------------------
+// Orthographic camera
+// ---------------------------------------------------------------------------------
+
+/// An orthographic camera (`CameraEffects::ortho_height`) images a sphere of radius r
+/// as a disc of radius `r / height * image_height` pixels wherever it is, with no
+/// perspective shrinking or stretching: here an off-axis sphere twice as far as a
+/// centred one, both radius 0.5, image height 4 world units over 64 pixels: 8 px.
+#[test]
+fn orthographic_sphere_is_a_disc_of_the_right_pixel_radius() {
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(emissive("white", Vec3::ONE));
+    // centred sphere and an off-axis one further back
+    let spheres = [
+        (Vec3::ZERO, (32.0, 32.0)),
+        (Vec3::new(-0.75, 0.5, -5.0), (20.0, 24.0)),
+    ];
+    for (c, _) in spheres {
+        b.add_sphere(c, 0.5, m);
+    }
+    b.camera = Some(camera(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 45.0));
+    b.camera_effects.ortho_height = Some(4.0);
+    let scene = b.finish().unwrap();
+    let opts = options(&scene, 64, 64);
+    let film = render(&scene, &opts).film;
+    // radius 0.5 / height 4 * 64 px = 8 px; centres: (0,0) -> (32,32) and
+    // (-0.75, 0.5) -> (32 - 12, 32 - 8)
+    let radius = 8.0f64;
+    let (mut inside, mut outside) = ([0; 2], 0);
+    for y in 0..64 {
+        for x in 0..64 {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let dist = |k: usize| {
+                let (cx, cy) = spheres[k].1;
+                ((px - cx).powi(2) + (py - cy).powi(2)).sqrt()
+            };
+            let covered = film.get(x, y) != Vec3::ZERO;
+            // 0.01 px margin: the f32 ray origins are within ~1e-6 world units
+            // (2.5e-4 px at 16 px per unit) of the exact ones
+            for k in 0..2 {
+                if dist(k) < radius - 0.01 {
+                    inside[k] += 1;
+                    assert!(covered, "pixel ({x},{y}) should show sphere {k}");
+                }
+            }
+            if dist(0) > radius + 0.01 && dist(1) > radius + 0.01 {
+                outside += 1;
+                assert!(!covered, "pixel ({x},{y}) should be background");
+            }
+        }
+    }
+    // pi 8^2 = 201 pixel centres per disc (the two overlap in part); a perspective
+    // camera would shrink the far one
+    assert!(inside[0] > 190 && inside[1] > 190, "{inside:?}");
+    assert!(outside > 3500, "{outside}");
+}

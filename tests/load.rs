@@ -504,3 +504,23 @@ fn readme_example_is_a_valid_scene() {
     assert_eq!(scene.spheres.len(), 1 + sphereflake_count(3) + 2);
     assert_eq!((scene.settings.width, scene.settings.spp), (640, 4));
 }
+
+#[test]
+fn toml_orthographic_camera() {
+    let (_, r) = toml(
+        "[camera]\nprojection = \"orthographic\"\nheight = 2.5\n\n[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n",
+    );
+    assert_eq!(r.unwrap().camera_effects.ortho_height, Some(2.5));
+    let (_, r) = toml("[camera]\nprojection = \"perspective\"\n");
+    assert_eq!(r.unwrap().camera_effects.ortho_height, None);
+    let (p, r) = toml("[camera]\nprojection = \"orthographic\"\n");
+    assert_input_error(r, &p, 2, Some(14), "needs `height`");
+    let (p, r) = toml("[camera]\nheight = 2\n");
+    assert_input_error(r, &p, 2, Some(10), "needs `projection");
+    let (p, r) = toml("[camera]\nprojection = \"fisheye\"\n");
+    assert_input_error(r, &p, 2, Some(14), "unknown projection");
+    let (p, r) = toml("[camera]\nprojection = \"orthographic\"\nheight = -1\n");
+    assert_input_error(r, &p, 3, Some(10), "height");
+    let (p, r) = toml("[camera]\nprojection = \"orthographic\"\nheight = 1\naperture = 0.1\n");
+    assert_input_error(r, &p, 2, Some(14), "no lens");
+}

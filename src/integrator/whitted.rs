@@ -70,7 +70,10 @@ pub(crate) fn render_tiles<W>(
     let start = Instant::now();
     let (width, height) = (opts.width, opts.height);
     let camera = CameraSampler {
-        frame: scene.camera.frame(width, height),
+        frame: scene
+            .camera
+            .frame(width, height)
+            .with_effects(&scene.camera_effects),
         lens: LensFrame::new(&scene.camera, &scene.camera_effects),
         plan: SamplePlan::new(scene, opts),
     };

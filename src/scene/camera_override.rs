@@ -106,7 +106,8 @@ impl Camera {
     }
 }
 
-/// Camera settings given on the command line. Framing (`side`, `up_axis`) replaces the
+/// Camera settings given on the command line. `ortho` makes the camera orthographic.
+/// Framing (`side`, `up_axis`) replaces the
 /// scene's camera by [`Camera::framing_from`] of the scene bounds; `eye`, `target`,
 /// `up` and `fov` then replace single fields. All-`None` leaves the scene untouched.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -118,6 +119,8 @@ pub struct CameraOverrides {
     pub fov: Option<f32>,
     pub up_axis: Option<UpAxis>,
     pub side: Option<Side>,
+    /// `--ortho HEIGHT`: orthographic projection with this image height (world units).
+    pub ortho: Option<f32>,
 }
 
 impl CameraOverrides {
@@ -169,6 +172,13 @@ impl CameraOverrides {
             return Ok(());
         }
         let c = self.apply(scene.camera, &scene.bounds)?;
+        if let Some(h) = self.ortho {
+            let mut e = scene.camera_effects;
+            e.ortho_height = Some(h);
+            e.validate()
+                .map_err(|m| Error::parameter("camera flags", format!("--ortho: {m}")))?;
+            scene.camera_effects = e;
+        }
         if c.eye != scene.camera.eye && scene.camera_effects.eye1.is_some() {
             return Err(Error::parameter(
                 "camera flags",

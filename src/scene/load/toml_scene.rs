@@ -87,6 +87,8 @@ struct CameraDef {
     aperture_rotation: Option<Spanned<f32>>,
     shutter: Option<Spanned<[f32; 2]>>,
     eye1: Option<V3>,
+    projection: Option<Spanned<String>>,
+    height: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -832,7 +834,49 @@ fn camera_effects(cx: Ctx, def: &CameraDef) -> Result<CameraEffects> {
     if let Some(e1) = &def.eye1 {
         e.eye1 = Some(cx.vec3(e1, "eye1")?);
     }
+    e.ortho_height = projection(cx, def, e.aperture)?;
     Ok(e)
+}
+
+/// `projection = "perspective" | "orthographic"` and the orthographic `height`: the
+/// image height in world units, for `orthographic` only (and then required).
+fn projection(cx: Ctx, def: &CameraDef, aperture: f32) -> Result<Option<f32>> {
+    let ortho = match &def.projection {
+        None => false,
+        Some(p) => {
+            match p.get_ref().as_str() {
+                "perspective" => false,
+                "orthographic" => true,
+                other => {
+                    return Err(cx.at(
+                    p,
+                    format!("unknown projection `{other}`: expected \"perspective\" or \"orthographic\""),
+                ));
+                }
+            }
+        }
+    };
+    match (&def.height, ortho) {
+        (Some(h), false) => Err(cx.at(
+            h,
+            "`height` is the orthographic image height: it needs `projection = \"orthographic\"`",
+        )),
+        (None, true) => Err(cx.at(
+            def.projection.as_ref().expect("ortho has a projection key"),
+            "`projection = \"orthographic\"` needs `height` (image height in world units, > 0)",
+        )),
+        (None, false) => Ok(None),
+        (Some(h), true) => {
+            let h = cx.positive(h, "height")?;
+            if aperture > 0.0 {
+                return Err(cx.at(
+                    def.projection.as_ref().expect("ortho has a projection key"),
+                    "an orthographic camera has no lens: `aperture` must be 0",
+                ));
+            }
+            Ok(Some(h))
+        }
+    }
 }
 
 /// A field that exists in the struct but not for this `type` is an error at that field.
