@@ -992,3 +992,85 @@ fn orthographic_sphere_is_a_disc_of_the_right_pixel_radius() {
     assert!(inside[0] > 190 && inside[1] > 190, "{inside:?}");
     assert!(outside > 3500, "{outside}");
 }
+
+// ---------------------------------------------------------------------------------
+// Spot light
+// ---------------------------------------------------------------------------------
+
+/// A spot light 2 above a floor, pointing straight down, seen from above by an
+/// orthographic camera (64 px over 4 units: 16 px per unit). The lit pool has the
+/// radius 2 tan(cone) exactly (hard edge), and with a smooth edge every pixel is the
+/// hard-edged one scaled by pbrt-v4's smoothstep of its cos θ.
+#[test]
+fn spot_light_lights_a_disc_with_pbrt_falloff() {
+    let cone = 30f32;
+    let render_spot = |falloff: f32| {
+        let mut b = SceneBuilder::new();
+        let m = b.add_material(Material::diffuse("floor", Vec3::splat(0.8)));
+        b.add_quad(
+            Vec3::new(-4.0, 0.0, -4.0),
+            Vec3::new(0.0, 0.0, 8.0),
+            Vec3::new(8.0, 0.0, 0.0),
+            m,
+        );
+        b.add_light(Light::Spot {
+            position: Vec3::new(0.0, 2.0, 0.0),
+            direction: Vec3::NEG_Y,
+            intensity: Vec3::splat(10.0),
+            cos_total: cone.to_radians().cos(),
+            cos_falloff_start: (cone - falloff).to_radians().cos(),
+        });
+        let mut c = camera(Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, 45.0);
+        c.up = Vec3::NEG_Z;
+        b.camera = Some(c);
+        b.camera_effects.ortho_height = Some(4.0);
+        let scene = b.finish().unwrap();
+        let opts = options(&scene, 64, 64);
+        render(&scene, &opts).film
+    };
+    let hard = render_spot(0.0);
+    let smooth = render_spot(10.0);
+    let radius_px = 2.0 * (cone as f64).to_radians().tan() * 16.0; // 18.48 px
+    let (mut lit, mut dark, mut partial) = (0, 0, 0);
+    for y in 0..64 {
+        for x in 0..64 {
+            let (dx, dy) = (x as f64 + 0.5 - 32.0, y as f64 + 0.5 - 32.0);
+            let r = (dx * dx + dy * dy).sqrt();
+            let h = hard.get(x, y);
+            // 0.01 px margin at 16 px per unit: float noise in the hit point only
+            if r < radius_px - 0.01 {
+                lit += 1;
+                assert!(h.x > 0.0, "({x},{y}) inside the cone is dark");
+            } else if r > radius_px + 0.01 {
+                dark += 1;
+                assert_eq!(h, Vec3::ZERO, "({x},{y}) outside the cone is lit");
+                assert_eq!(smooth.get(x, y), Vec3::ZERO);
+            }
+            if r < radius_px - 0.01 {
+                // cos θ of the floor point seen from the light, in f64
+                let cos = 2.0 / (4.0 + (r / 16.0).powi(2)).sqrt();
+                let (ct, cs) = (
+                    (cone as f64).to_radians().cos(),
+                    ((cone - 10.0) as f64).to_radians().cos(),
+                );
+                let t = ((cos - ct) / (cs - ct)).clamp(0.0, 1.0);
+                let want = if cos >= cs {
+                    1.0
+                } else {
+                    t * t * (3.0 - 2.0 * t)
+                };
+                let got = (smooth.get(x, y).x / h.x) as f64;
+                if want < 1.0 && want > 0.0 {
+                    partial += 1;
+                }
+                // 1e-3: f32 cos θ near the edge (t's denominator is ~0.07) against f64
+                assert!((got - want).abs() < 1e-3, "({x},{y}): {got} vs {want}");
+            }
+        }
+    }
+    // pi 18.48^2 = 1073 lit pixel centres; the 20..30 degree ring holds ~600 of them
+    assert!(
+        lit > 1000 && dark > 2900 && partial > 400,
+        "{lit} {dark} {partial}"
+    );
+}

@@ -5,7 +5,7 @@ use glam::Vec3;
 use packet_render::Error;
 use packet_render::scene::load::{load_obj, load_obj_scene, load_scene, parse_toml_scene};
 use packet_render::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh};
-use packet_render::scene::{Scene, SceneBuilder};
+use packet_render::scene::{Light, Scene, SceneBuilder};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -523,4 +523,35 @@ fn toml_orthographic_camera() {
     assert_input_error(r, &p, 3, Some(10), "height");
     let (p, r) = toml("[camera]\nprojection = \"orthographic\"\nheight = 1\naperture = 0.1\n");
     assert_input_error(r, &p, 2, Some(14), "no lens");
+}
+
+#[test]
+fn toml_spot_light() {
+    let (_, r) = toml(
+        "[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -2, 0]\nintensity = [5, 5, 5]\ncone_angle = 40\nfalloff = 10\n",
+    );
+    match r.unwrap().lights[0] {
+        Light::Spot {
+            direction,
+            cos_total,
+            cos_falloff_start,
+            ..
+        } => {
+            assert_eq!(direction, Vec3::NEG_Y);
+            assert_eq!(cos_total, 40f32.to_radians().cos());
+            assert_eq!(cos_falloff_start, 30f32.to_radians().cos());
+        }
+        other => panic!("expected a spot light, got {other:?}"),
+    }
+    let spot = "[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -1, 0]\nintensity = [5, 5, 5]\n";
+    let (p, r) = toml(&format!("{spot}cone_angle = 91\n"));
+    assert_input_error(r, &p, 6, Some(14), "cone_angle");
+    let (p, r) = toml(&format!("{spot}cone_angle = 20\nfalloff = 25\n"));
+    assert_input_error(r, &p, 7, Some(11), "falloff");
+    let (p, r) = toml(
+        "[[light]]\ntype = \"point\"\nposition = [0, 2, 0]\nintensity = [5, 5, 5]\ncone_angle = 20\n",
+    );
+    assert_input_error(r, &p, 5, Some(14), "spot light");
+    let (p, r) = toml("[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\nintensity = [5, 5, 5]\n");
+    assert_input_error(r, &p, 1, None, "missing `direction`");
 }

@@ -899,6 +899,33 @@ impl Shader<'_> {
                         shadow(out, ray, intensity / dist2 * f, index);
                     }
                 }
+                Light::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    cos_total,
+                    cos_falloff_start,
+                } => {
+                    // As the point light, scaled by the cone's falloff (pbrt-v4).
+                    let to_light = position - si.p;
+                    let dist2 = to_light.length_squared();
+                    let wi = to_light / dist2.sqrt();
+                    let falloff =
+                        Light::spot_falloff(-wi.dot(direction), cos_total, cos_falloff_start);
+                    if falloff > 0.0
+                        && let Some(f) = reflectance(wi)
+                    {
+                        let ray = spawn_ray_to(
+                            base,
+                            si.p_error,
+                            si.n_geometric,
+                            position,
+                            Vec3::ZERO,
+                            -wi,
+                        );
+                        shadow(out, ray, intensity * falloff / dist2 * f, index);
+                    }
+                }
                 Light::Directional {
                     direction,
                     irradiance,

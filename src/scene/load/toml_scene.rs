@@ -132,6 +132,8 @@ struct LightDef {
     normal: Option<V3>,
     radius: Option<Spanned<f32>>,
     radiance: Option<V3>,
+    cone_angle: Option<Spanned<f32>>,
+    falloff: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -705,11 +707,12 @@ fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
         "quad" => &["corner", "edge1", "edge2", "radiance"],
         "disk" => &["center", "normal", "radius", "radiance"],
         "sphere" => &["center", "radius", "radiance"],
+        "spot" => &["position", "direction", "intensity"],
         other => {
             return Err(cx.at(
                 &def.kind,
                 format!(
-                    "unknown light type `{other}`; expected one of: point, directional, quad, disk, sphere"
+                    "unknown light type `{other}`; expected one of: point, directional, spot, quad, disk, sphere"
                 ),
             ));
         }
@@ -730,6 +733,15 @@ fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
     ];
     let what = format!("a {kind} light");
     reject_foreign_fields(cx, &present, fields, &what)?;
+    if kind != "spot" {
+        // the spot's optional keys
+        if let Some(f) = def.cone_angle.as_ref().or(def.falloff.as_ref()) {
+            return Err(cx.at(
+                f,
+                format!("`cone_angle` and `falloff` are keys of a spot light, not of {what}"),
+            ));
+        }
+    }
     if let Some((missing, _)) = present
         .iter()
         .find(|(name, span)| fields.contains(name) && span.is_none())
@@ -779,11 +791,51 @@ fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
             radius: cx.positive(def.radius.as_ref().expect("checked present"), "radius")?,
             radiance: cx.color(v(&def.radiance), "radiance")?,
         },
+        "spot" => spot_light(cx, def, v)?,
         _ => Light::Sphere {
             center: cx.vec3(v(&def.center), "center")?,
             radius: cx.positive(def.radius.as_ref().expect("checked present"), "radius")?,
             radiance: cx.color(v(&def.radiance), "radiance")?,
         },
+    })
+}
+
+/// `type = "spot"`: `cone_angle` (half-angle of the cone in degrees, (0, 90], default
+/// 30) and `falloff` (degrees of smooth edge inside it, [0, cone_angle], default 5),
+/// as pbrt's `coneangle` and `conedelta`.
+fn spot_light(cx: Ctx, def: &LightDef, v: fn(&Option<V3>) -> &V3) -> Result<Light> {
+    let cone = match &def.cone_angle {
+        Some(c) => {
+            let x = *c.get_ref();
+            if !(x > 0.0 && x <= 90.0) {
+                return Err(cx.at(
+                    c,
+                    format!("`cone_angle` must be in (0, 90] degrees, got {x}"),
+                ));
+            }
+            x
+        }
+        None => 30.0,
+    };
+    let falloff = match &def.falloff {
+        Some(f) => {
+            let x = *f.get_ref();
+            if !(x >= 0.0 && x <= cone) {
+                return Err(cx.at(
+                    f,
+                    format!("`falloff` must be in [0, cone_angle = {cone}] degrees, got {x}"),
+                ));
+            }
+            x
+        }
+        None => 5f32.min(cone),
+    };
+    Ok(Light::Spot {
+        position: cx.vec3(v(&def.position), "position")?,
+        direction: cx.direction(v(&def.direction), "direction")?.normalize(),
+        intensity: cx.color(v(&def.intensity), "intensity")?,
+        cos_total: cone.to_radians().cos(),
+        cos_falloff_start: (cone - falloff).to_radians().cos(),
     })
 }
 
