@@ -975,9 +975,9 @@ fn orthographic_sphere_is_a_disc_of_the_right_pixel_radius() {
             let covered = film.get(x, y) != Vec3::ZERO;
             // 0.01 px margin: the f32 ray origins are within ~1e-6 world units
             // (2.5e-4 px at 16 px per unit) of the exact ones
-            for k in 0..2 {
+            for (k, n) in inside.iter_mut().enumerate() {
                 if dist(k) < radius - 0.01 {
-                    inside[k] += 1;
+                    *n += 1;
                     assert!(covered, "pixel ({x},{y}) should show sphere {k}");
                 }
             }

@@ -220,8 +220,8 @@ fn toml_absurd_render_settings() {
 
 #[test]
 fn toml_unknown_types_list_the_valid_ones() {
-    let (p, r) = toml("[[light]]\ntype = \"spot\"\n");
-    assert_input_error(r, &p, 2, Some(8), "point, directional");
+    let (p, r) = toml("[[light]]\ntype = \"laser\"\n");
+    assert_input_error(r, &p, 2, Some(8), "point, directional, spot");
     let (p, r) = toml("[[generator]]\ntype = \"teapot\"\n");
     assert_input_error(r, &p, 2, Some(8), "sphereflake, tessellated, whitted_room");
     let (p, r) = toml("[[light]]\ntype = \"point\"\ndirection = [0, -1, 0]\n");
