@@ -555,3 +555,32 @@ fn toml_spot_light() {
     let (p, r) = toml("[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\nintensity = [5, 5, 5]\n");
     assert_input_error(r, &p, 1, None, "missing `direction`");
 }
+
+/// `--up-axis` / `--look-from-side` re-frame a loaded OBJ around its bounds.
+#[test]
+fn obj_scene_reframed_from_a_side() {
+    use packet_render::scene::{CameraOverrides, Side, UpAxis};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/meshes/gem.obj");
+    let mut scene = load_obj_scene(&path).unwrap();
+    let auto = scene.camera;
+    let o = CameraOverrides {
+        side: Some(Side::Front),
+        up_axis: Some(UpAxis::Z),
+        ..Default::default()
+    };
+    o.apply_to_scene(&mut scene).unwrap();
+    let c = scene.camera;
+    assert_ne!(c, auto);
+    assert_eq!(c.target, scene.bounds.center());
+    let d = c.eye - c.target;
+    // front with Z up looks from -Y: the offset (0, -1.2 d, 0) adds nothing to x and
+    // z, so they are exactly the centre's
+    assert!(d.y < 0.0 && d.x == 0.0 && d.z == 0.0, "{d}");
+    assert_eq!(c.up, Vec3::Z);
+    // no camera flag leaves the scene as loaded
+    let mut again = load_obj_scene(&path).unwrap();
+    CameraOverrides::default()
+        .apply_to_scene(&mut again)
+        .unwrap();
+    assert_eq!(again.camera, auto);
+}
