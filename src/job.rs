@@ -32,6 +32,9 @@ pub struct Overrides {
     pub filter: Option<FilterKind>,
     /// Shadows through glass on or off (`integrator::shadow`).
     pub transmitted_shadows: Option<bool>,
+    /// Camera flags (`--eye`, `--target`, `--up`, `--fov`, `--up-axis`,
+    /// `--look-from-side`), applied to the loaded scene's camera.
+    pub camera: scene::CameraOverrides,
 }
 
 /// One render from a scene file to an image file.
@@ -140,7 +143,8 @@ impl RenderJob {
         crate::film::check_output_paths(&outputs)?;
         let mut time = PhaseTimes::default();
         let t = Instant::now();
-        let scene = scene::load::load_scene(&self.scene)?;
+        let mut scene = scene::load::load_scene(&self.scene)?;
+        self.overrides.camera.apply_to_scene(&mut scene)?;
         time.load = ms_since(t);
         if let Some(w) = scene::nothing_visible_warning(&scene, &self.scene.display().to_string()) {
             eprintln!("warning: {w}");

@@ -219,6 +219,8 @@ struct RenderArgs {
     transmitted_shadows: Option<bool>,
     #[command(flatten)]
     sampling: SamplingArgs,
+    #[command(flatten)]
+    camera: CameraArgs,
     /// Worker threads; 0 = all cores; at most 1024.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -276,6 +278,66 @@ struct SamplingArgs {
     /// Shutter times per lens sample (default: the scene's).
     #[arg(long)]
     time_samples: Option<u32>,
+}
+
+/// Camera flags (README.md, "Camera from the command line"): replace the scene's camera
+/// or parts of it.
+#[derive(clap::Args)]
+struct CameraArgs {
+    /// Eye position (replaces the scene camera's `eye`).
+    #[arg(long, value_name = "x,y,z", value_parser = packet_render::scene::parse_vec3, allow_hyphen_values = true)]
+    eye: Option<glam::Vec3>,
+    /// Point looked at (replaces `target`).
+    #[arg(long, value_name = "x,y,z", value_parser = packet_render::scene::parse_vec3, allow_hyphen_values = true)]
+    target: Option<glam::Vec3>,
+    /// Up direction (replaces `up`).
+    #[arg(long, value_name = "x,y,z", value_parser = packet_render::scene::parse_vec3, allow_hyphen_values = true)]
+    up: Option<glam::Vec3>,
+    /// Vertical field of view in degrees, 0 < fov < 180 (replaces `fov`).
+    #[arg(long, value_name = "DEG", value_parser = parse_f32_like_toml)]
+    fov: Option<f32>,
+    /// The model's up axis, `y` or `z` (Z-up scans): re-frames the camera around the
+    /// scene bounds with that axis up.
+    #[arg(long, value_parser = parse_up_axis)]
+    up_axis: Option<packet_render::scene::UpAxis>,
+    /// Re-frame the camera around the scene bounds, looking from this side:
+    /// front, back, left, right or top.
+    #[arg(long, value_name = "SIDE", value_parser = parse_side)]
+    look_from_side: Option<packet_render::scene::Side>,
+    /// Orthographic camera with this image height in world units (TOML `projection =
+    /// "orthographic"`, `height`).
+    #[arg(long, value_name = "HEIGHT", value_parser = parse_f32_like_toml)]
+    ortho: Option<f32>,
+}
+
+impl CameraArgs {
+    fn overrides(&self) -> packet_render::scene::CameraOverrides {
+        packet_render::scene::CameraOverrides {
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            fov: self.fov,
+            up_axis: self.up_axis,
+            side: self.look_from_side,
+            ortho: self.ortho,
+        }
+    }
+}
+
+/// A number read as `f64` and rounded to `f32`, as the TOML loader reads one.
+fn parse_f32_like_toml(s: &str) -> Result<f32, String> {
+    s.trim()
+        .parse::<f64>()
+        .map(|x| x as f32)
+        .map_err(|_| format!("`{s}` is not a number"))
+}
+
+fn parse_up_axis(s: &str) -> Result<packet_render::scene::UpAxis, String> {
+    s.parse()
+}
+
+fn parse_side(s: &str) -> Result<packet_render::scene::Side, String> {
+    s.parse()
 }
 
 fn parse_sampler(s: &str) -> Result<packet_render::integrator::SamplerKind, String> {
@@ -337,6 +399,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             sampler: args.sampling.sampler,
             filter: args.sampling.filter,
             transmitted_shadows: args.transmitted_shadows,
+            camera: args.camera.overrides(),
         },
         accel: args.accel,
         integrator: args.integrator,

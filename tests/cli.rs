@@ -517,3 +517,142 @@ fn scenes_where_nothing_can_be_hit_render_with_a_warning() {
         assert!(out.is_file(), "{name}");
     }
 }
+
+/// Issue 14 item 5: the camera flags give the same camera as TOML keys with the same
+/// text, so the images are identical byte for byte (Radiance .hdr keeps more than
+/// 8 bits, so a one-ulp camera difference would show in most pixels' mantissas).
+#[test]
+fn camera_flags_reproduce_a_toml_camera_bit_for_bit() {
+    let dir = tmp_dir("camera-flags");
+    let toml = dir.join("cam.toml");
+    std::fs::write(
+        &toml,
+        "[render]\nwidth = 40\nheight = 30\nspp = 1\nmax_depth = 4\n\n\
+         [[generator]]\ntype = \"whitted_room\"\n\n\
+         [camera]\neye = [0.1, 1.3, 4.7]\ntarget = [-0.3, 0.9, 0.01]\nup = [0.1, 1, 0]\nfov = 37.3\n",
+    )
+    .unwrap();
+    let render = |scene: &str, out: &Path, extra: &[&str]| {
+        let mut a = vec!["render", scene, "-o", out.to_str().unwrap(), "--quiet"];
+        a.extend_from_slice(extra);
+        let o = run(&a);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        std::fs::read(out).unwrap()
+    };
+    let from_toml = render(toml.to_str().unwrap(), &dir.join("toml.hdr"), &[]);
+    let size = ["--width", "40", "--height", "30", "--max-depth", "4"];
+    let mut flags = size.to_vec();
+    flags.extend_from_slice(&[
+        "--eye",
+        "0.1,1.3,4.7",
+        "--target",
+        "-0.3,0.9,0.01",
+        "--up",
+        "0.1,1,0",
+        "--fov",
+        "37.3",
+    ]);
+    let shipped = scene("whitted.toml");
+    let from_flags = render(&shipped, &dir.join("flags.hdr"), &flags);
+    assert!(from_toml == from_flags, "flag camera renders differently");
+    // the camera matters: the generator's own camera gives another image
+    let default = render(&shipped, &dir.join("default.hdr"), &size);
+    assert!(default != from_toml, "the test camera is the default one");
+    // and a one-flag change is seen
+    let mut fov = flags.clone();
+    *fov.last_mut().unwrap() = "37.4";
+    assert!(render(&shipped, &dir.join("fov.hdr"), &fov) != from_toml);
+}
+
+#[test]
+fn bad_camera_flags_are_refused_before_work() {
+    let dir = tmp_dir("camera-bad");
+    let out = dir.join("never.png");
+    let s = scene("whitted.toml");
+    assert_fails(
+        &[&s, "--fov", "180"],
+        &out,
+        "--fov must be between 0 and 180",
+    );
+    assert_fails(
+        &[&s, "--fov", "nan"],
+        &out,
+        "--fov must be between 0 and 180",
+    );
+    assert_fails(
+        &[&s, "--eye", "1,2,3", "--target", "1,2,3"],
+        &out,
+        "eye and target are the same point",
+    );
+    assert_fails(
+        &[&s, "--eye", "0,5,0", "--target", "0,0,0", "--up", "0,1,0"],
+        &out,
+        "up is parallel",
+    );
+    assert_fails(
+        &[&s, "--up", "0,0,0"],
+        &out,
+        "--up must be a finite non-zero",
+    );
+    assert_fails(
+        &[&s, "--eye", "inf,0,0"],
+        &out,
+        "--eye must be three finite",
+    );
+    assert_fails(
+        &[&s, "--ortho", "0"],
+        &out,
+        "orthographic height must be finite and > 0",
+    );
+    // malformed values are clap's usage errors (exit 2) naming the flag
+    for args in [
+        ["--eye", "1,2"],
+        ["--look-from-side", "under"],
+        ["--up-axis", "x"],
+    ] {
+        let o = run(&["render", &s, "-o", out.to_str().unwrap(), args[0], args[1]]);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(args[0]), "{args:?}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn ortho_flag_matches_the_toml_orthographic_camera() {
+    let dir = tmp_dir("camera-ortho");
+    let body = "[render]\nwidth = 32\nheight = 24\nspp = 1\nmax_depth = 3\n\n[[generator]]\ntype = \"whitted_room\"\n";
+    let plain = dir.join("plain.toml");
+    std::fs::write(&plain, body).unwrap();
+    let ortho = dir.join("ortho.toml");
+    std::fs::write(
+        &ortho,
+        format!("{body}\n[camera]\neye = [0, 1, 4]\ntarget = [0, 0.5, 0]\nprojection = \"orthographic\"\nheight = 3.3\n"),
+    )
+    .unwrap();
+    let render = |scene: &Path, name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut a = vec![
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ];
+        a.extend_from_slice(extra);
+        let o = run(&a);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        std::fs::read(out).unwrap()
+    };
+    let from_toml = render(&ortho, "t.hdr", &[]);
+    let cam = ["--eye", "0,1,4", "--target", "0,0.5,0"];
+    let mut flags = cam.to_vec();
+    flags.extend_from_slice(&["--ortho", "3.3"]);
+    assert!(
+        render(&plain, "f.hdr", &flags) == from_toml,
+        "--ortho differs from TOML"
+    );
+    assert!(
+        render(&plain, "p.hdr", &cam) != from_toml,
+        "perspective looks the same"
+    );
+}

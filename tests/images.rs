@@ -935,3 +935,142 @@ fn low_poly_smooth_sphere_does_not_shadow_its_lit_side() {
         "{shadowed} of {lit} lit-side pixels are shadowed by the mesh's own facets"
     );
 }
+
+// ---------------------------------------------------------------------------------
+// Orthographic camera
+// ---------------------------------------------------------------------------------
+
+/// An orthographic camera (`CameraEffects::ortho_height`) images a sphere of radius r
+/// as a disc of radius `r / height * image_height` pixels wherever it is, with no
+/// perspective shrinking or stretching: here an off-axis sphere twice as far as a
+/// centred one, both radius 0.5, image height 4 world units over 64 pixels: 8 px.
+#[test]
+fn orthographic_sphere_is_a_disc_of_the_right_pixel_radius() {
+    let mut b = SceneBuilder::new();
+    let m = b.add_material(emissive("white", Vec3::ONE));
+    // centred sphere and an off-axis one further back
+    let spheres = [
+        (Vec3::ZERO, (32.0, 32.0)),
+        (Vec3::new(-0.75, 0.5, -5.0), (20.0, 24.0)),
+    ];
+    for (c, _) in spheres {
+        b.add_sphere(c, 0.5, m);
+    }
+    b.camera = Some(camera(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 45.0));
+    b.camera_effects.ortho_height = Some(4.0);
+    let scene = b.finish().unwrap();
+    let opts = options(&scene, 64, 64);
+    let film = render(&scene, &opts).film;
+    // radius 0.5 / height 4 * 64 px = 8 px; centres: (0,0) -> (32,32) and
+    // (-0.75, 0.5) -> (32 - 12, 32 - 8)
+    let radius = 8.0f64;
+    let (mut inside, mut outside) = ([0; 2], 0);
+    for y in 0..64 {
+        for x in 0..64 {
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let dist = |k: usize| {
+                let (cx, cy) = spheres[k].1;
+                ((px - cx).powi(2) + (py - cy).powi(2)).sqrt()
+            };
+            let covered = film.get(x, y) != Vec3::ZERO;
+            // 0.01 px margin: the f32 ray origins are within ~1e-6 world units
+            // (2.5e-4 px at 16 px per unit) of the exact ones
+            for (k, n) in inside.iter_mut().enumerate() {
+                if dist(k) < radius - 0.01 {
+                    *n += 1;
+                    assert!(covered, "pixel ({x},{y}) should show sphere {k}");
+                }
+            }
+            if dist(0) > radius + 0.01 && dist(1) > radius + 0.01 {
+                outside += 1;
+                assert!(!covered, "pixel ({x},{y}) should be background");
+            }
+        }
+    }
+    // pi 8^2 = 201 pixel centres per disc (the two overlap in part); a perspective
+    // camera would shrink the far one
+    assert!(inside[0] > 190 && inside[1] > 190, "{inside:?}");
+    assert!(outside > 3500, "{outside}");
+}
+
+// ---------------------------------------------------------------------------------
+// Spot light
+// ---------------------------------------------------------------------------------
+
+/// A spot light 2 above a floor, pointing straight down, seen from above by an
+/// orthographic camera (64 px over 4 units: 16 px per unit). The lit pool has the
+/// radius 2 tan(cone) exactly (hard edge), and with a smooth edge every pixel is the
+/// hard-edged one scaled by pbrt-v4's smoothstep of its cos θ.
+#[test]
+fn spot_light_lights_a_disc_with_pbrt_falloff() {
+    let cone = 30f32;
+    let render_spot = |falloff: f32| {
+        let mut b = SceneBuilder::new();
+        let m = b.add_material(Material::diffuse("floor", Vec3::splat(0.8)));
+        b.add_quad(
+            Vec3::new(-4.0, 0.0, -4.0),
+            Vec3::new(0.0, 0.0, 8.0),
+            Vec3::new(8.0, 0.0, 0.0),
+            m,
+        );
+        b.add_light(Light::Spot {
+            position: Vec3::new(0.0, 2.0, 0.0),
+            direction: Vec3::NEG_Y,
+            intensity: Vec3::splat(10.0),
+            cos_total: cone.to_radians().cos(),
+            cos_falloff_start: (cone - falloff).to_radians().cos(),
+        });
+        let mut c = camera(Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, 45.0);
+        c.up = Vec3::NEG_Z;
+        b.camera = Some(c);
+        b.camera_effects.ortho_height = Some(4.0);
+        let scene = b.finish().unwrap();
+        let opts = options(&scene, 64, 64);
+        render(&scene, &opts).film
+    };
+    let hard = render_spot(0.0);
+    let smooth = render_spot(10.0);
+    let radius_px = 2.0 * (cone as f64).to_radians().tan() * 16.0; // 18.48 px
+    let (mut lit, mut dark, mut partial) = (0, 0, 0);
+    for y in 0..64 {
+        for x in 0..64 {
+            let (dx, dy) = (x as f64 + 0.5 - 32.0, y as f64 + 0.5 - 32.0);
+            let r = (dx * dx + dy * dy).sqrt();
+            let h = hard.get(x, y);
+            // 0.01 px margin at 16 px per unit: float noise in the hit point only
+            if r < radius_px - 0.01 {
+                lit += 1;
+                assert!(h.x > 0.0, "({x},{y}) inside the cone is dark");
+            } else if r > radius_px + 0.01 {
+                dark += 1;
+                assert_eq!(h, Vec3::ZERO, "({x},{y}) outside the cone is lit");
+                assert_eq!(smooth.get(x, y), Vec3::ZERO);
+            }
+            if r < radius_px - 0.01 {
+                // cos θ of the floor point seen from the light, in f64
+                let cos = 2.0 / (4.0 + (r / 16.0).powi(2)).sqrt();
+                let (ct, cs) = (
+                    (cone as f64).to_radians().cos(),
+                    ((cone - 10.0) as f64).to_radians().cos(),
+                );
+                let t = ((cos - ct) / (cs - ct)).clamp(0.0, 1.0);
+                let want = if cos >= cs {
+                    1.0
+                } else {
+                    t * t * (3.0 - 2.0 * t)
+                };
+                let got = (smooth.get(x, y).x / h.x) as f64;
+                if want < 1.0 && want > 0.0 {
+                    partial += 1;
+                }
+                // 1e-3: f32 cos θ near the edge (t's denominator is ~0.07) against f64
+                assert!((got - want).abs() < 1e-3, "({x},{y}): {got} vs {want}");
+            }
+        }
+    }
+    // pi 18.48^2 = 1073 lit pixel centres; the 20..30 degree ring holds ~600 of them
+    assert!(
+        lit > 1000 && dark > 2900 && partial > 400,
+        "{lit} {dark} {partial}"
+    );
+}

@@ -5,7 +5,7 @@ use glam::Vec3;
 use packet_render::Error;
 use packet_render::scene::load::{load_obj, load_obj_scene, load_scene, parse_toml_scene};
 use packet_render::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh};
-use packet_render::scene::{Scene, SceneBuilder};
+use packet_render::scene::{Light, Scene, SceneBuilder};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -220,8 +220,8 @@ fn toml_absurd_render_settings() {
 
 #[test]
 fn toml_unknown_types_list_the_valid_ones() {
-    let (p, r) = toml("[[light]]\ntype = \"spot\"\n");
-    assert_input_error(r, &p, 2, Some(8), "point, directional");
+    let (p, r) = toml("[[light]]\ntype = \"laser\"\n");
+    assert_input_error(r, &p, 2, Some(8), "point, directional, spot");
     let (p, r) = toml("[[generator]]\ntype = \"teapot\"\n");
     assert_input_error(r, &p, 2, Some(8), "sphereflake, tessellated, whitted_room");
     let (p, r) = toml("[[light]]\ntype = \"point\"\ndirection = [0, -1, 0]\n");
@@ -503,4 +503,84 @@ fn readme_example_is_a_valid_scene() {
     // Its own sphere, the flake, and the two spheres of the Whitted room.
     assert_eq!(scene.spheres.len(), 1 + sphereflake_count(3) + 2);
     assert_eq!((scene.settings.width, scene.settings.spp), (640, 4));
+}
+
+#[test]
+fn toml_orthographic_camera() {
+    let (_, r) = toml(
+        "[camera]\nprojection = \"orthographic\"\nheight = 2.5\n\n[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n",
+    );
+    assert_eq!(r.unwrap().camera_effects.ortho_height, Some(2.5));
+    let (_, r) = toml("[camera]\nprojection = \"perspective\"\n");
+    assert_eq!(r.unwrap().camera_effects.ortho_height, None);
+    let (p, r) = toml("[camera]\nprojection = \"orthographic\"\n");
+    assert_input_error(r, &p, 2, Some(14), "needs `height`");
+    let (p, r) = toml("[camera]\nheight = 2\n");
+    assert_input_error(r, &p, 2, Some(10), "needs `projection");
+    let (p, r) = toml("[camera]\nprojection = \"fisheye\"\n");
+    assert_input_error(r, &p, 2, Some(14), "unknown projection");
+    let (p, r) = toml("[camera]\nprojection = \"orthographic\"\nheight = -1\n");
+    assert_input_error(r, &p, 3, Some(10), "height");
+    let (p, r) = toml("[camera]\nprojection = \"orthographic\"\nheight = 1\naperture = 0.1\n");
+    assert_input_error(r, &p, 2, Some(14), "no lens");
+}
+
+#[test]
+fn toml_spot_light() {
+    let (_, r) = toml(
+        "[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -2, 0]\nintensity = [5, 5, 5]\ncone_angle = 40\nfalloff = 10\n",
+    );
+    match r.unwrap().lights[0] {
+        Light::Spot {
+            direction,
+            cos_total,
+            cos_falloff_start,
+            ..
+        } => {
+            assert_eq!(direction, Vec3::NEG_Y);
+            assert_eq!(cos_total, 40f32.to_radians().cos());
+            assert_eq!(cos_falloff_start, 30f32.to_radians().cos());
+        }
+        other => panic!("expected a spot light, got {other:?}"),
+    }
+    let spot = "[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -1, 0]\nintensity = [5, 5, 5]\n";
+    let (p, r) = toml(&format!("{spot}cone_angle = 91\n"));
+    assert_input_error(r, &p, 6, Some(14), "cone_angle");
+    let (p, r) = toml(&format!("{spot}cone_angle = 20\nfalloff = 25\n"));
+    assert_input_error(r, &p, 7, Some(11), "falloff");
+    let (p, r) = toml(
+        "[[light]]\ntype = \"point\"\nposition = [0, 2, 0]\nintensity = [5, 5, 5]\ncone_angle = 20\n",
+    );
+    assert_input_error(r, &p, 5, Some(14), "spot light");
+    let (p, r) = toml("[[light]]\ntype = \"spot\"\nposition = [0, 2, 0]\nintensity = [5, 5, 5]\n");
+    assert_input_error(r, &p, 1, None, "missing `direction`");
+}
+
+/// `--up-axis` / `--look-from-side` re-frame a loaded OBJ around its bounds.
+#[test]
+fn obj_scene_reframed_from_a_side() {
+    use packet_render::scene::{CameraOverrides, Side, UpAxis};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/meshes/gem.obj");
+    let mut scene = load_obj_scene(&path).unwrap();
+    let auto = scene.camera;
+    let o = CameraOverrides {
+        side: Some(Side::Front),
+        up_axis: Some(UpAxis::Z),
+        ..Default::default()
+    };
+    o.apply_to_scene(&mut scene).unwrap();
+    let c = scene.camera;
+    assert_ne!(c, auto);
+    assert_eq!(c.target, scene.bounds.center());
+    let d = c.eye - c.target;
+    // front with Z up looks from -Y: the offset (0, -1.2 d, 0) adds nothing to x and
+    // z, so they are exactly the centre's
+    assert!(d.y < 0.0 && d.x == 0.0 && d.z == 0.0, "{d}");
+    assert_eq!(c.up, Vec3::Z);
+    // no camera flag leaves the scene as loaded
+    let mut again = load_obj_scene(&path).unwrap();
+    CameraOverrides::default()
+        .apply_to_scene(&mut again)
+        .unwrap();
+    assert_eq!(again.camera, auto);
 }

@@ -71,7 +71,10 @@ pub(crate) fn render_tiles<W>(
     let start = Instant::now();
     let (width, height) = (opts.width, opts.height);
     let camera = CameraSampler {
-        frame: scene.camera.frame(width, height),
+        frame: scene
+            .camera
+            .frame(width, height)
+            .with_effects(&scene.camera_effects),
         lens: LensFrame::new(&scene.camera, &scene.camera_effects),
         plan: SamplePlan::new(scene, opts),
     };
@@ -984,6 +987,33 @@ impl Shader<'_> {
                             -wi,
                         );
                         shadow(out, ray, intensity / dist2 * f, index);
+                    }
+                }
+                Light::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    cos_total,
+                    cos_falloff_start,
+                } => {
+                    // As the point light, scaled by the cone's falloff (pbrt-v4).
+                    let to_light = position - si.p;
+                    let dist2 = to_light.length_squared();
+                    let wi = to_light / dist2.sqrt();
+                    let falloff =
+                        Light::spot_falloff(-wi.dot(direction), cos_total, cos_falloff_start);
+                    if falloff > 0.0
+                        && let Some(f) = reflectance(wi)
+                    {
+                        let ray = spawn_ray_to(
+                            base,
+                            si.p_error,
+                            si.n_geometric,
+                            position,
+                            Vec3::ZERO,
+                            -wi,
+                        );
+                        shadow(out, ray, intensity * falloff / dist2 * f, index);
                     }
                 }
                 Light::Directional {

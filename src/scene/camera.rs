@@ -23,6 +23,9 @@ pub struct CameraFrame {
     pub tan_half: f32,
     pub width: f32,
     pub height: f32,
+    /// Half the image height in world units for an orthographic camera (`None`:
+    /// perspective). Set by [`CameraFrame::with_effects`].
+    pub ortho_half_height: Option<f32>,
 }
 
 impl Camera {
@@ -78,14 +81,28 @@ impl Camera {
             tan_half: (0.5 * self.vfov_deg).to_radians().tan(),
             width: width as f32,
             height: height as f32,
+            ortho_half_height: None,
         }
     }
 }
 
 impl CameraFrame {
+    /// The frame with the projection of `effects` (orthographic or perspective).
+    pub fn with_effects(mut self, effects: &CameraEffects) -> Self {
+        self.ortho_half_height = effects.ortho_height.map(|h| 0.5 * h);
+        self
+    }
+
     /// Primary ray through the continuous image point `(px, py)` (pixel centres at +0.5).
+    /// Orthographic: every ray has the direction `forward` and starts on the plane
+    /// through the eye, `ortho_height` tall and `width / height` times that wide.
     #[inline]
     pub fn ray(&self, px: f32, py: f32) -> Ray {
+        if let Some(h) = self.ortho_half_height {
+            let sx = (2.0 * px / self.width - 1.0) * h * self.width / self.height;
+            let sy = (1.0 - 2.0 * py / self.height) * h;
+            return Ray::new(self.eye + sx * self.right + sy * self.up, self.forward);
+        }
         let sx = (2.0 * px / self.width - 1.0) * self.tan_half * self.width / self.height;
         let sy = (1.0 - 2.0 * py / self.height) * self.tan_half;
         let dir = (self.forward + sx * self.right + sy * self.up).normalize();
@@ -112,6 +129,9 @@ pub struct CameraEffects {
     /// Eye position at shutter close: the camera translates (eye and target together)
     /// from `eye` at open to `eye1` at close. `None` is a fixed camera.
     pub eye1: Option<Vec3>,
+    /// Orthographic projection: the image height in world units (`None`, the default,
+    /// is the perspective pinhole of [`Camera`], whose `vfov_deg` is then unused).
+    pub ortho_height: Option<f32>,
 }
 
 impl Default for CameraEffects {
@@ -123,6 +143,7 @@ impl Default for CameraEffects {
             aperture_rotation_deg: 0.0,
             shutter: [0.0, 0.0],
             eye1: None,
+            ortho_height: None,
         }
     }
 }
@@ -165,6 +186,16 @@ impl CameraEffects {
         }
         if self.eye1.is_some_and(|e| !e.is_finite()) {
             return Err("eye1 must be finite".into());
+        }
+        if let Some(h) = self.ortho_height {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(format!(
+                    "orthographic height must be finite and > 0, got {h}"
+                ));
+            }
+            if self.aperture > 0.0 {
+                return Err("an orthographic camera has no lens: aperture must be 0".into());
+            }
         }
         Ok(())
     }
@@ -221,5 +252,59 @@ impl LensFrame {
         }
         r.time = time;
         r
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orthographic_rays_are_parallel_and_span_the_height() {
+        let cam = Camera {
+            eye: Vec3::new(0.3, 1.0, 5.0),
+            target: Vec3::new(-0.2, 0.4, 0.0),
+            up: Vec3::Y,
+            vfov_deg: 45.0,
+        };
+        let effects = CameraEffects {
+            ortho_height: Some(2.0),
+            ..Default::default()
+        };
+        let frame = cam.frame(64, 32).with_effects(&effects);
+        for (px, py) in [(0.5, 0.5), (63.5, 31.5), (10.25, 20.75), (32.0, 16.0)] {
+            // exact: the direction is the frame's forward, never recomputed
+            assert_eq!(frame.ray(px, py).dir, frame.forward);
+        }
+        // image corners: half height 1, half width 2 (aspect 2); 2e-6 covers the f32
+        // rounding of eye + sx r + sy u at |eye| ~ 5 (about four ulps of 5, 4.8e-7 each)
+        let top_left = frame.ray(0.0, 0.0).origin - cam.eye;
+        let want = -2.0 * frame.right + frame.up;
+        assert!(
+            (top_left - want).abs().max_element() < 2e-6,
+            "{top_left} vs {want}"
+        );
+        let centre = frame.ray(32.0, 16.0).origin;
+        assert_eq!(centre, cam.eye);
+        // the perspective frame is unchanged by default effects
+        let p = cam.frame(64, 32).with_effects(&CameraEffects::default());
+        assert_ne!(p.ray(0.5, 0.5).dir, p.ray(63.5, 31.5).dir);
+        assert!(
+            CameraEffects {
+                ortho_height: Some(0.0),
+                ..Default::default()
+            }
+            .validate()
+            .is_err()
+        );
+        assert!(
+            CameraEffects {
+                ortho_height: Some(1.0),
+                aperture: 0.1,
+                ..Default::default()
+            }
+            .validate()
+            .is_err()
+        );
     }
 }

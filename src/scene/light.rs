@@ -15,6 +15,19 @@ use std::f32::consts::{PI, TAU};
 pub enum Light {
     /// Radiant intensity `intensity` (per colour channel); irradiance falls off as 1/r².
     Point { position: Vec3, intensity: Vec3 },
+    /// A point light restricted to a cone (pbrt-v4's `SpotLight`, Pharr, Jakob and
+    /// Humphreys, PBRT 4th ed., sec. 12.2.1): intensity `intensity` along the unit
+    /// `direction`, scaled by [`Light::spot_falloff`]: 1 inside `cos_falloff_start`,
+    /// 0 outside `cos_total`, a smoothstep in cos θ between them.
+    Spot {
+        position: Vec3,
+        direction: Vec3,
+        intensity: Vec3,
+        /// Cosine of the cone's half-angle (no light beyond it).
+        cos_total: f32,
+        /// Cosine of the half-angle where the falloff starts (full intensity within).
+        cos_falloff_start: f32,
+    },
     /// Light arriving along `direction` (pointing from the light into the scene) with
     /// irradiance `irradiance` on a surface facing it.
     Directional { direction: Vec3, irradiance: Vec3 },
@@ -98,7 +111,7 @@ impl Light {
             })
         };
         match *self {
-            Light::Point { .. } | Light::Directional { .. } => None,
+            Light::Point { .. } | Light::Directional { .. } | Light::Spot { .. } => None,
             Light::Quad {
                 corner,
                 edge1,
@@ -173,9 +186,52 @@ impl Light {
         }
     }
 
+    /// The spot light's falloff for `cos_theta`, the cosine of the angle between the
+    /// spot's axis and the direction from the light to the shaded point: pbrt-v4's
+    /// `SmoothStep(cos_theta, cos_total, cos_falloff_start)`, `t² (3 - 2t)` of the
+    /// clamped `t = (cos_theta - cos_total) / (cos_falloff_start - cos_total)`; a hard
+    /// edge (0 or 1) when the two cosines are equal.
+    pub fn spot_falloff(cos_theta: f32, cos_total: f32, cos_falloff_start: f32) -> f32 {
+        if cos_theta < cos_total {
+            return 0.0;
+        }
+        if cos_theta >= cos_falloff_start {
+            return 1.0;
+        }
+        let t = ((cos_theta - cos_total) / (cos_falloff_start - cos_total)).clamp(0.0, 1.0);
+        t * t * (3.0 - 2.0 * t)
+    }
+
     pub fn validate(&self) -> Result<(), String> {
         let colour_ok = |c: Vec3| c.is_finite() && c.min_element() >= 0.0;
         match *self {
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                cos_total,
+                cos_falloff_start,
+            } => {
+                if !position.is_finite() || !colour_ok(intensity) {
+                    return Err(
+                        "spot light needs a finite position and a finite, non-negative intensity"
+                            .into(),
+                    );
+                }
+                if !direction.is_finite() || (direction.length() - 1.0).abs() > 1e-4 {
+                    return Err("spot light needs a finite unit direction".into());
+                }
+                if !(cos_total.is_finite()
+                    && cos_falloff_start.is_finite()
+                    && (-1.0..=1.0).contains(&cos_total)
+                    && cos_total <= cos_falloff_start
+                    && cos_falloff_start <= 1.0)
+                {
+                    return Err(format!(
+                        "spot light needs -1 <= cos_total <= cos_falloff_start <= 1, got {cos_total}, {cos_falloff_start}"
+                    ));
+                }
+            }
             Light::Point {
                 position,
                 intensity,
@@ -252,6 +308,28 @@ mod tests {
     /// Irradiance at the centre below a light, estimated by sampling, against the
     /// closed forms: a disk of radius R at height h gives `π L R² / (h² + R²)`; a sphere
     /// of radius R at distance d gives `π L (R/d)²` on a facing surface.
+    #[test]
+    fn spot_falloff_is_pbrt_v4_smoothstep() {
+        let (total, start) = (30f32.to_radians().cos(), 20f32.to_radians().cos());
+        assert_eq!(Light::spot_falloff(1.0, total, start), 1.0);
+        assert_eq!(Light::spot_falloff(start, total, start), 1.0);
+        assert_eq!(Light::spot_falloff(total - 1e-6, total, start), 0.0);
+        // midpoint in cos θ: smoothstep(0.5) = 0.5 (2e-6: f32 rounding of t near 0.5)
+        let mid = 0.5 * (total + start);
+        assert!((Light::spot_falloff(mid, total, start) - 0.5).abs() < 2e-6);
+        // monotone between the edges
+        let mut last = 0.0;
+        for i in 0..=100 {
+            let c = total + (start - total) * i as f32 / 100.0;
+            let f = Light::spot_falloff(c, total, start);
+            assert!(f >= last, "{c}: {f} < {last}");
+            last = f;
+        }
+        // hard edge
+        assert_eq!(Light::spot_falloff(start, start, start), 1.0);
+        assert_eq!(Light::spot_falloff(start - 1e-6, start, start), 0.0);
+    }
+
     #[test]
     fn area_light_sampling_integrates_irradiance() {
         let p = Vec3::ZERO;

@@ -8,6 +8,7 @@
 //! can reach the renderer.
 
 mod camera;
+mod camera_override;
 mod checks;
 mod light;
 pub mod load;
@@ -16,6 +17,7 @@ mod motion;
 pub mod procedural;
 
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
+pub use camera_override::{CameraOverrides, Side, UpAxis, parse_vec3};
 pub use checks::nothing_visible_warning;
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
@@ -337,7 +339,7 @@ impl SceneBuilder {
         };
         let name = format!("light{}", self.lights.len() - 1);
         match l {
-            Light::Point { .. } | Light::Directional { .. } => {}
+            Light::Point { .. } | Light::Directional { .. } | Light::Spot { .. } => {}
             Light::Quad {
                 corner,
                 edge1,
@@ -572,7 +574,11 @@ impl SceneBuilder {
             triangles: !self.mesh.is_empty(),
             spheres: !self.spheres.is_empty(),
             shading_normals: self.mesh.has_normals() && !self.mesh.is_empty(),
-            point_lights: self.lights.iter().any(|l| matches!(l, Light::Point { .. })),
+            // a spot light is a point light with a cone: same shadow ray
+            point_lights: self
+                .lights
+                .iter()
+                .any(|l| matches!(l, Light::Point { .. } | Light::Spot { .. })),
             directional_lights: self
                 .lights
                 .iter()

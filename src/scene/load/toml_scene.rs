@@ -87,6 +87,8 @@ struct CameraDef {
     aperture_rotation: Option<Spanned<f32>>,
     shutter: Option<Spanned<[f32; 2]>>,
     eye1: Option<V3>,
+    projection: Option<Spanned<String>>,
+    height: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -130,6 +132,8 @@ struct LightDef {
     normal: Option<V3>,
     radius: Option<Spanned<f32>>,
     radiance: Option<V3>,
+    cone_angle: Option<Spanned<f32>>,
+    falloff: Option<Spanned<f32>>,
 }
 
 #[derive(Deserialize)]
@@ -703,11 +707,12 @@ fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
         "quad" => &["corner", "edge1", "edge2", "radiance"],
         "disk" => &["center", "normal", "radius", "radiance"],
         "sphere" => &["center", "radius", "radiance"],
+        "spot" => &["position", "direction", "intensity"],
         other => {
             return Err(cx.at(
                 &def.kind,
                 format!(
-                    "unknown light type `{other}`; expected one of: point, directional, quad, disk, sphere"
+                    "unknown light type `{other}`; expected one of: point, directional, spot, quad, disk, sphere"
                 ),
             ));
         }
@@ -728,6 +733,15 @@ fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
     ];
     let what = format!("a {kind} light");
     reject_foreign_fields(cx, &present, fields, &what)?;
+    if kind != "spot" {
+        // the spot's optional keys
+        if let Some(f) = def.cone_angle.as_ref().or(def.falloff.as_ref()) {
+            return Err(cx.at(
+                f,
+                format!("`cone_angle` and `falloff` are keys of a spot light, not of {what}"),
+            ));
+        }
+    }
     if let Some((missing, _)) = present
         .iter()
         .find(|(name, span)| fields.contains(name) && span.is_none())
@@ -777,11 +791,51 @@ fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
             radius: cx.positive(def.radius.as_ref().expect("checked present"), "radius")?,
             radiance: cx.color(v(&def.radiance), "radiance")?,
         },
+        "spot" => spot_light(cx, def, v)?,
         _ => Light::Sphere {
             center: cx.vec3(v(&def.center), "center")?,
             radius: cx.positive(def.radius.as_ref().expect("checked present"), "radius")?,
             radiance: cx.color(v(&def.radiance), "radiance")?,
         },
+    })
+}
+
+/// `type = "spot"`: `cone_angle` (half-angle of the cone in degrees, (0, 90], default
+/// 30) and `falloff` (degrees of smooth edge inside it, [0, cone_angle], default 5),
+/// as pbrt's `coneangle` and `conedelta`.
+fn spot_light(cx: Ctx, def: &LightDef, v: fn(&Option<V3>) -> &V3) -> Result<Light> {
+    let cone = match &def.cone_angle {
+        Some(c) => {
+            let x = *c.get_ref();
+            if !(x > 0.0 && x <= 90.0) {
+                return Err(cx.at(
+                    c,
+                    format!("`cone_angle` must be in (0, 90] degrees, got {x}"),
+                ));
+            }
+            x
+        }
+        None => 30.0,
+    };
+    let falloff = match &def.falloff {
+        Some(f) => {
+            let x = *f.get_ref();
+            if !(x >= 0.0 && x <= cone) {
+                return Err(cx.at(
+                    f,
+                    format!("`falloff` must be in [0, cone_angle = {cone}] degrees, got {x}"),
+                ));
+            }
+            x
+        }
+        None => 5f32.min(cone),
+    };
+    Ok(Light::Spot {
+        position: cx.vec3(v(&def.position), "position")?,
+        direction: cx.direction(v(&def.direction), "direction")?.normalize(),
+        intensity: cx.color(v(&def.intensity), "intensity")?,
+        cos_total: cone.to_radians().cos(),
+        cos_falloff_start: (cone - falloff).to_radians().cos(),
     })
 }
 
@@ -832,7 +886,49 @@ fn camera_effects(cx: Ctx, def: &CameraDef) -> Result<CameraEffects> {
     if let Some(e1) = &def.eye1 {
         e.eye1 = Some(cx.vec3(e1, "eye1")?);
     }
+    e.ortho_height = projection(cx, def, e.aperture)?;
     Ok(e)
+}
+
+/// `projection = "perspective" | "orthographic"` and the orthographic `height`: the
+/// image height in world units, for `orthographic` only (and then required).
+fn projection(cx: Ctx, def: &CameraDef, aperture: f32) -> Result<Option<f32>> {
+    let ortho = match &def.projection {
+        None => false,
+        Some(p) => {
+            match p.get_ref().as_str() {
+                "perspective" => false,
+                "orthographic" => true,
+                other => {
+                    return Err(cx.at(
+                    p,
+                    format!("unknown projection `{other}`: expected \"perspective\" or \"orthographic\""),
+                ));
+                }
+            }
+        }
+    };
+    match (&def.height, ortho) {
+        (Some(h), false) => Err(cx.at(
+            h,
+            "`height` is the orthographic image height: it needs `projection = \"orthographic\"`",
+        )),
+        (None, true) => Err(cx.at(
+            def.projection.as_ref().expect("ortho has a projection key"),
+            "`projection = \"orthographic\"` needs `height` (image height in world units, > 0)",
+        )),
+        (None, false) => Ok(None),
+        (Some(h), true) => {
+            let h = cx.positive(h, "height")?;
+            if aperture > 0.0 {
+                return Err(cx.at(
+                    def.projection.as_ref().expect("ortho has a projection key"),
+                    "an orthographic camera has no lens: `aperture` must be 0",
+                ));
+            }
+            Ok(Some(h))
+        }
+    }
 }
 
 /// A field that exists in the struct but not for this `type` is an error at that field.
