@@ -50,6 +50,8 @@ pub struct RenderJob {
     pub extra_outputs: Vec<PathBuf>,
     /// Which part of the frame to render (default: all of it).
     pub part: Part,
+    /// Exposure and tone mapping (PNG only) and EXR precision of the output image.
+    pub image: crate::film::ImageOptions,
 }
 
 /// A part of a frame for distributed rendering (docs/distributed.md): a pixel
@@ -133,6 +135,8 @@ impl RenderJob {
         if !partial {
             crate::film::check_image_path(&self.output)?;
         }
+        // A bad exposure is refused before any work, not after the render.
+        self.image.validate()?;
         let outputs: Vec<&std::path::Path> = std::iter::once(&self.output)
             .chain(&self.extra_outputs)
             .map(PathBuf::as_path)
@@ -165,7 +169,7 @@ impl RenderJob {
             self.partial_image(&scene, &opts, &out)?
                 .save(&self.output)?;
         } else {
-            out.film.save(&self.output)?;
+            out.film.save_with(&self.output, &self.image)?;
         }
         time.write = ms_since(t);
 

@@ -192,12 +192,14 @@ struct BenchArgs {
 struct RenderArgs {
     /// Scene file: a TOML scene (see scenes/README.md) or an OBJ mesh.
     scene: PathBuf,
-    /// Output image: .png (8-bit sRGB), .hdr (Radiance, linear), or .partial (exact
-    /// pixel sums for `merge`).
+    /// Output image: .png (8-bit sRGB), .hdr (Radiance, linear), .exr (OpenEXR, linear
+    /// float), or .partial (exact pixel sums for `merge`).
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
     part: PartArgs,
+    #[command(flatten)]
+    image: ImageArgs,
     /// Image width in pixels (default: the scene's).
     #[arg(long)]
     width: Option<u32>,
@@ -234,6 +236,31 @@ struct RenderArgs {
     /// No progress bar and no stats block.
     #[arg(short, long)]
     quiet: bool,
+}
+
+/// How the image file is written: exposure and tone mapping for PNG, precision for EXR.
+#[derive(clap::Args)]
+struct ImageArgs {
+    /// Exposure in stops (radiance times 2^STOPS) before tone mapping; PNG only, never
+    /// applied to .hdr or .exr.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Tone mapping for PNG: clamp, reinhard (c / (1 + c)) or filmic (ACES-like).
+    #[arg(long, default_value = "clamp")]
+    tonemap: packet_render::film::ToneMap,
+    /// Write .exr channels as 16-bit half floats (default: 32-bit float).
+    #[arg(long)]
+    exr_half: bool,
+}
+
+impl ImageArgs {
+    fn options(&self) -> packet_render::film::ImageOptions {
+        packet_render::film::ImageOptions {
+            exposure: self.exposure,
+            tonemap: self.tonemap,
+            exr_half: self.exr_half,
+        }
+    }
 }
 
 /// Distribution ray tracing: sample patterns, filter and per-effect sample counts
@@ -329,6 +356,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             sample_range: args.part.sample_range,
         },
         extra_outputs: args.stats_json.iter().cloned().collect(),
+        image: args.image.options(),
     };
     let bar = (!args.quiet).then(progress_bar);
     let report = job.run(bar.as_ref().map(|(_, p)| p.clone()))?;
