@@ -251,6 +251,10 @@ struct ImageArgs {
     /// Write .exr channels as 16-bit half floats (default: 32-bit float).
     #[arg(long)]
     exr_half: bool,
+    /// Add depth (`depth.Z`), normal (`normal.X/Y/Z`) and albedo (`albedo.R/G/B`)
+    /// layers to the .exr output, from one centre ray per pixel.
+    #[arg(long)]
+    aovs: bool,
 }
 
 impl ImageArgs {
@@ -259,6 +263,7 @@ impl ImageArgs {
             exposure: self.exposure,
             tonemap: self.tonemap,
             exr_half: self.exr_half,
+            aovs: self.aovs,
         }
     }
 }

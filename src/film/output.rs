@@ -41,9 +41,30 @@ impl Film {
     /// half-written image, an existing file is only replaced by a complete one, and on
     /// any error the temporary file is removed, so a failed save leaves nothing behind.
     pub fn save_with(&self, path: &Path, opts: &ImageOptions) -> Result<()> {
+        self.save_with_channels(path, opts, &[])
+    }
+
+    /// [`Film::save_with`] plus `extra` channels (one value per pixel each, such as
+    /// the AOVs of [`crate::integrator::aov`]), which only `.exr` can hold: any other
+    /// format with extra channels is an error.
+    pub fn save_with_channels(
+        &self,
+        path: &Path,
+        opts: &ImageOptions,
+        extra: &[super::exr::ExtraChannel],
+    ) -> Result<()> {
         let format = format_for(path)?;
         opts.validate()?;
-        write_atomic(path, |out| self.encode(out, path, format, opts))
+        if !extra.is_empty() && !matches!(format, Format::Exr) {
+            return Err(Error::parameter(
+                "output",
+                format!(
+                    "{}: extra channels (AOVs) need an .exr output",
+                    path.display()
+                ),
+            ));
+        }
+        write_atomic(path, |out| self.encode(out, path, format, opts, extra))
     }
 
     /// 8-bit sRGB codes after `opts`' exposure and tone mapping, three bytes per pixel.
@@ -61,6 +82,7 @@ impl Film {
         target: &Path,
         format: Format,
         opts: &ImageOptions,
+        extra: &[super::exr::ExtraChannel],
     ) -> Result<()> {
         let image_err = |e: image::ImageError| Error::Image {
             path: target.to_path_buf(),
@@ -68,7 +90,7 @@ impl Film {
         };
         match format {
             Format::Png => self.encode_png(out, target, opts)?,
-            Format::Exr => super::exr::encode(self, &[], opts.exr_half, out, target)?,
+            Format::Exr => super::exr::encode(self, extra, opts.exr_half, out, target)?,
             Format::Hdr => {
                 // RGBE has no sign and no NaN: store what a display could show of such
                 // values (0) rather than a garbage exponent.
@@ -395,7 +417,7 @@ mod tests {
         let opts = ImageOptions {
             exposure: 1.0,
             tonemap: ToneMap::Reinhard,
-            exr_half: false,
+            ..ImageOptions::default()
         };
         gradient().save_with(&path, &opts).unwrap();
         let decoder = png::Decoder::new(std::io::BufReader::new(File::open(&path).unwrap()));
@@ -421,7 +443,7 @@ mod tests {
         let opts = ImageOptions {
             exposure: 3.0,
             tonemap: ToneMap::Filmic,
-            exr_half: false,
+            ..ImageOptions::default()
         };
         for ext in ["hdr", "exr"] {
             let plain = dir.join(format!("plain.{ext}"));
@@ -525,6 +547,58 @@ mod tests {
         film.pixels[0] = Vec3::splat(0.1);
         film.save_with(&path, &opts).unwrap();
         assert_eq!(read_exr(&path).0[0][0], 0.099_975_586);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn exr_extra_channels_round_trip_and_other_formats_refuse_them() {
+        use crate::film::exr::ExtraChannel;
+        use exr::prelude::FlatSamples;
+        let dir = scratch_dir("exraov");
+        let film = gradient();
+        let depth: Vec<f32> = (0..15).map(|i| i as f32 * 0.37 + 1.0).collect();
+        let mut nz = vec![f32::INFINITY; 15];
+        nz[7] = -0.0;
+        let extra = vec![
+            ExtraChannel {
+                name: "depth.Z".into(),
+                values: depth.clone(),
+            },
+            ExtraChannel {
+                name: "normal.Z".into(),
+                values: nz.clone(),
+            },
+        ];
+        let path = dir.join("aov.exr");
+        film.save_with_channels(&path, &ImageOptions::default(), &extra)
+            .unwrap();
+        let (rgb, names, _) = read_exr(&path);
+        assert_eq!(names, ["B", "G", "R", "depth.Z", "normal.Z"]);
+        assert_eq!(rgb[14], film.pixels[14].to_array());
+        let image = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
+        let list = &image.layer_data[0].channel_data.list;
+        for (ch, want) in [(&list[3], &depth), (&list[4], &nz)] {
+            let FlatSamples::F32(got) = &ch.sample_data else {
+                panic!("not f32")
+            };
+            let bits = |v: &Vec<f32>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(got), bits(want));
+        }
+        // A wrong-length channel and a format without channels are errors, not files.
+        let short = [ExtraChannel {
+            name: "depth.Z".into(),
+            values: vec![1.0; 3],
+        }];
+        let opts = ImageOptions::default();
+        assert!(
+            film.save_with_channels(&dir.join("short.exr"), &opts, &short)
+                .is_err()
+        );
+        let err = film
+            .save_with_channels(&dir.join("aov.png"), &opts, &extra)
+            .unwrap_err();
+        assert!(err.to_string().contains(".exr"), "{err}");
+        assert_eq!(entries(&dir), ["aov.exr"]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

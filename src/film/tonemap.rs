@@ -75,6 +75,9 @@ pub struct ImageOptions {
     pub tonemap: ToneMap,
     /// Write EXR channels as 16-bit half floats instead of 32-bit floats.
     pub exr_half: bool,
+    /// Add depth, normal and albedo layers to an EXR output (a render job computes
+    /// them, [`crate::integrator::aov`]); only EXR can hold them.
+    pub aovs: bool,
 }
 
 /// Largest exposure magnitude accepted: 2^±64 already spans more than f32 radiance
@@ -112,7 +115,7 @@ mod tests {
         ImageOptions {
             exposure,
             tonemap,
-            exr_half: false,
+            ..ImageOptions::default()
         }
     }
 

@@ -2,6 +2,7 @@
 //! reference renderer; `wavefront` renders the same images breadth first, tracing rays
 //! in batches from queues.
 
+pub mod aov;
 pub mod budget;
 pub mod region;
 pub mod sampling;

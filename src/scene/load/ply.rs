@@ -81,7 +81,8 @@ pub fn load_ply_from_bytes(bytes: &[u8], path: &Path) -> Result<PlyMesh> {
             .get("vertex")
             .is_some_and(|d| d.properties.contains_key(name))
     };
-    if !vertices.is_empty() && !(has("x") && has("y") && has("z")) {
+    let xyz = has("x") && has("y") && has("z");
+    if !vertices.is_empty() && !xyz {
         return Err(header_error("`element vertex` lacks an x, y or z property"));
     }
     if vertices.len() > u32::MAX as usize {
@@ -228,7 +229,10 @@ mod tests {
 
     /// The source mesh: a quad (split as a fan) and a triangle, with normals and 8-bit
     /// colours; coordinates that are not short decimals, so a lossy path would show.
-    fn source() -> (Vec<Vec3>, Vec<Vec3>, Vec<[u8; 3]>, Vec<Vec<u32>>) {
+    /// Positions, normals, 8-bit colours, faces.
+    type Source = (Vec<Vec3>, Vec<Vec3>, Vec<[u8; 3]>, Vec<Vec<u32>>);
+
+    fn source() -> Source {
         let positions = vec![
             Vec3::new(0.0, 0.0, 0.0),
             Vec3::new(1.0, 0.0, 0.0),
