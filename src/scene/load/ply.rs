@@ -281,18 +281,37 @@ mod tests {
     }
 
     fn binary_ply() -> Vec<u8> {
+        binary_ply_with(false)
+    }
+
+    fn binary_ply_with(big_endian: bool) -> Vec<u8> {
         let (p, n, c, f) = source();
-        let mut b = format!("ply\nformat binary_little_endian 1.0\n{HEADER_PROPS}").into_bytes();
+        let order = if big_endian { "big" } else { "little" };
+        let mut b = format!("ply\nformat binary_{order}_endian 1.0\n{HEADER_PROPS}").into_bytes();
+        let f32_bytes = |v: f32| {
+            if big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }
+        };
+        let i32_bytes = |v: i32| {
+            if big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }
+        };
         for i in 0..p.len() {
             for v in p[i].to_array().into_iter().chain(n[i].to_array()) {
-                b.extend(v.to_le_bytes());
+                b.extend(f32_bytes(v));
             }
             b.extend(c[i]);
         }
         for face in &f {
             b.push(face.len() as u8);
             for &i in face {
-                b.extend((i as i32).to_le_bytes());
+                b.extend(i32_bytes(i as i32));
             }
         }
         b
@@ -337,6 +356,13 @@ mod tests {
         check_round_trip(&bytes, "mesh.ply");
         // The two files hold the same mesh through different encodings.
         assert_ne!(bytes, ascii_ply());
+    }
+
+    #[test]
+    fn binary_big_endian_round_trip() {
+        let bytes = binary_ply_with(true);
+        check_round_trip(&bytes, "mesh.ply");
+        assert_ne!(bytes, binary_ply());
     }
 
     #[test]
