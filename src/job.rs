@@ -53,6 +53,8 @@ pub struct RenderJob {
     pub extra_outputs: Vec<PathBuf>,
     /// Which part of the frame to render (default: all of it).
     pub part: Part,
+    /// Exposure and tone mapping (PNG only) and EXR precision of the output image.
+    pub image: crate::film::ImageOptions,
 }
 
 /// A part of a frame for distributed rendering (docs/distributed.md): a pixel
@@ -136,6 +138,10 @@ impl RenderJob {
         if !partial {
             crate::film::check_image_path(&self.output)?;
         }
+        // A bad exposure, or AOVs for a format that cannot hold them, is refused before
+        // any work, not after the render.
+        self.image.validate()?;
+        self.check_aovs(partial)?;
         let outputs: Vec<&std::path::Path> = std::iter::once(&self.output)
             .chain(&self.extra_outputs)
             .map(PathBuf::as_path)
@@ -169,7 +175,7 @@ impl RenderJob {
             self.partial_image(&scene, &opts, &out)?
                 .save(&self.output)?;
         } else {
-            out.film.save(&self.output)?;
+            self.save_image(&scene, &accel, &opts, &out)?;
         }
         time.write = ms_since(t);
 
@@ -261,6 +267,47 @@ impl RenderJob {
     }
 
     /// The partial image of a render made with `opts.keep_sums`.
+    fn check_aovs(&self, partial: bool) -> Result<()> {
+        let exr = self
+            .output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if self.image.aovs && (partial || !exr) {
+            return Err(Error::parameter(
+                "--aovs",
+                format!(
+                    "{}: depth, normal and albedo layers need an .exr output",
+                    self.output.display()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The film, plus the AOV layers when asked for (one centre ray per pixel).
+    fn save_image(
+        &self,
+        scene: &Scene,
+        accel: &SceneAccel,
+        opts: &RenderOptions,
+        out: &RenderOutput,
+    ) -> Result<()> {
+        let extra = if self.image.aovs {
+            let aovs = crate::integrator::aov::Aovs::render(
+                scene,
+                accel,
+                opts.width,
+                opts.height,
+                out.region,
+            );
+            aovs.channels()
+        } else {
+            Vec::new()
+        };
+        out.film
+            .save_with_channels(&self.output, &self.image, &extra)
+    }
+
     fn partial_image(
         &self,
         scene: &Scene,

@@ -195,12 +195,14 @@ struct BenchArgs {
 struct RenderArgs {
     /// Scene file: a TOML scene (see scenes/README.md) or an OBJ mesh.
     scene: PathBuf,
-    /// Output image: .png (8-bit sRGB), .hdr (Radiance, linear), or .partial (exact
-    /// pixel sums for `merge`).
+    /// Output image: .png (8-bit sRGB), .hdr (Radiance, linear), .exr (OpenEXR, linear
+    /// float), or .partial (exact pixel sums for `merge`).
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
     part: PartArgs,
+    #[command(flatten)]
+    image: ImageArgs,
     /// Image width in pixels (default: the scene's).
     #[arg(long)]
     width: Option<u32>,
@@ -254,6 +256,36 @@ struct ProgressiveArgs {
     /// Render in passes until the estimated display RMSE is at most this.
     #[arg(long, value_name = "E")]
     target_error: Option<f64>,
+}
+
+/// How the image file is written: exposure and tone mapping for PNG, precision for EXR.
+#[derive(clap::Args)]
+struct ImageArgs {
+    /// Exposure in stops (radiance times 2^STOPS) before tone mapping; PNG only, never
+    /// applied to .hdr or .exr.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Tone mapping for PNG: clamp, reinhard (c / (1 + c)) or filmic (ACES-like).
+    #[arg(long, default_value = "clamp")]
+    tonemap: packet_render::film::ToneMap,
+    /// Write .exr channels as 16-bit half floats (default: 32-bit float).
+    #[arg(long)]
+    exr_half: bool,
+    /// Add depth (`depth.Z`), normal (`normal.X/Y/Z`) and albedo (`albedo.R/G/B`)
+    /// layers to the .exr output, from one centre ray per pixel.
+    #[arg(long)]
+    aovs: bool,
+}
+
+impl ImageArgs {
+    fn options(&self) -> packet_render::film::ImageOptions {
+        packet_render::film::ImageOptions {
+            exposure: self.exposure,
+            tonemap: self.tonemap,
+            exr_half: self.exr_half,
+            aovs: self.aovs,
+        }
+    }
 }
 
 /// Distribution ray tracing: sample patterns, filter and per-effect sample counts
@@ -411,6 +443,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             sample_range: args.part.sample_range,
         },
         extra_outputs: args.stats_json.iter().cloned().collect(),
+        image: args.image.options(),
     };
     if args.progressive.time_limit.is_some() || args.progressive.target_error.is_some() {
         return render_progressive(&job, &args.progressive, args.quiet, args.stats_json, start);

@@ -2,11 +2,13 @@
 //! sums, partial images and their merge (distributed rendering).
 
 pub mod exact_sum;
+pub mod exr;
 pub mod merge;
 mod output;
 pub mod partial;
 mod pixel_sums;
 mod preflight;
+pub mod tonemap;
 
 use crate::error::{Error, Result};
 use glam::Vec3;
@@ -17,6 +19,7 @@ pub use output::{
 };
 pub use pixel_sums::PixelSums;
 pub use preflight::check_output_paths;
+pub use tonemap::{ImageOptions, ToneMap};
 
 /// Linear RGB radiance per pixel, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]

@@ -3,6 +3,7 @@
 //! in batches from queues.
 
 pub mod adaptive;
+pub mod aov;
 pub mod budget;
 pub mod region;
 pub mod sampling;

@@ -71,10 +71,7 @@ pub(crate) fn render_tiles<W>(
     let start = Instant::now();
     let (width, height) = (opts.width, opts.height);
     let camera = CameraSampler {
-        frame: scene
-            .camera
-            .frame(width, height)
-            .with_effects(&scene.camera_effects),
+        frame: scene.camera_frame(width, height),
         lens: LensFrame::new(&scene.camera, &scene.camera_effects),
         plan: SamplePlan::new(scene, opts),
     };
@@ -1151,7 +1148,7 @@ pub(crate) fn render_pixels<T: Send>(
     keep: impl Fn(&PixelSums) -> T + Sync,
 ) -> (Vec<T>, Vec<u64>, RayCounts) {
     let camera = CameraSampler {
-        frame: scene.camera.frame(opts.width, opts.height),
+        frame: scene.camera_frame(opts.width, opts.height),
         lens: LensFrame::new(&scene.camera, &scene.camera_effects),
         plan: SamplePlan::new(scene, opts),
     };

@@ -296,6 +296,14 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The camera's image frame for `width x height` pixels with the projection its
+    /// effects ask for (perspective, or orthographic): what every ray generator uses.
+    pub fn camera_frame(&self, width: u32, height: u32) -> CameraFrame {
+        self.camera
+            .frame(width, height)
+            .with_effects(&self.camera_effects)
+    }
+
     pub fn primitive_count(&self) -> usize {
         self.mesh.len() + self.spheres.len() + self.motion.len()
     }

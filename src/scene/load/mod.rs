@@ -3,9 +3,11 @@
 //! scene goes through [`SceneBuilder::finish`] last.
 
 mod obj;
+mod ply;
 mod toml_scene;
 
 pub use obj::{ObjMesh, load_obj, load_obj_from_bytes, material_from_mtl};
+pub use ply::{PlyMesh, load_ply, load_ply_from_bytes};
 pub use toml_scene::{load_toml_scene, parse_toml_scene};
 
 use super::{Camera, Light, Scene, SceneBuilder};
@@ -13,8 +15,8 @@ use crate::error::{Error, Result};
 use glam::{Mat4, Vec3};
 use std::path::Path;
 
-/// Loads a scene, choosing the format by extension: `.toml` is a scene file, `.obj`
-/// a mesh that gets an automatic camera and light ([`load_obj_scene`]).
+/// Loads a scene, choosing the format by extension: `.toml` is a scene file, `.obj` or
+/// `.ply` a mesh that gets an automatic camera and light ([`load_obj_scene`]).
 pub fn load_scene(path: &Path) -> Result<Scene> {
     let ext = path
         .extension()
@@ -22,22 +24,35 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("toml") => load_toml_scene(path),
-        Some("obj") => load_obj_scene(path),
+        Some("obj" | "ply") => load_obj_scene(path),
         _ => Err(Error::input(
             path,
             0,
             0,
-            "unknown scene format: expected a `.toml` scene file or an `.obj` mesh",
+            "unknown scene format: expected a `.toml` scene file or an `.obj` or `.ply` mesh",
         )),
     }
 }
 
-/// A mesh as a complete scene: materials from its MTL, the camera of BENCHMARK.md
+/// Loads a mesh file by extension: `.ply` through [`load_ply`] (its vertex colours are
+/// dropped), anything else as OBJ through [`load_obj`].
+pub fn load_mesh(path: &Path) -> Result<ObjMesh> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("ply") => load_ply(path).map(|p| p.mesh),
+        _ => load_obj(path),
+    }
+}
+
+/// A mesh (OBJ or PLY, by extension) as a complete scene: materials from its MTL, the camera of BENCHMARK.md
 /// ([`Camera::framing`]), one point light at `c + d (0.8, 1.2, 0.6)` (the benchmark's
 /// shadow-ray light) bright enough for an irradiance of about 1 at the centre, a weak
 /// ambient term and a grey background.
 pub fn load_obj_scene(path: &Path) -> Result<Scene> {
-    let mesh = load_obj(path)?;
+    let mesh = load_mesh(path)?;
     print_warnings(&mesh.warnings);
     let mut b = SceneBuilder::new();
     add_obj_mesh(&mut b, &mesh, Mat4::IDENTITY, None);

@@ -9,7 +9,7 @@
 //! here rather than serde enums: serde's internally tagged enums buffer their content
 //! and would lose the spans.
 
-use super::{add_obj_mesh, line_column, load_obj, obj::utf8_or_located_error, print_warnings};
+use super::{add_obj_mesh, line_column, load_mesh, obj::utf8_or_located_error, print_warnings};
 use crate::error::{Error, Result};
 use crate::integrator::{MAX_DEPTH, MAX_EFFECT_SAMPLES, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh, whitted_room};
@@ -528,7 +528,7 @@ impl<'a> Builder<'a> {
             .as_ref()
             .map(|_| self.material(&def.material))
             .transpose()?;
-        let mesh = load_obj(&resolved)?;
+        let mesh = load_mesh(&resolved)?;
         print_warnings(&mesh.warnings);
         // Finite vertices can overflow under a large scale or translation; say which
         // mesh entry did it rather than leave it to the scene-wide check.
