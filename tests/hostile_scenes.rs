@@ -204,7 +204,7 @@ fn rays_from_far_away_agree_with_brute_force() {
                 (u, v)
             };
             let target = a + u * (b - a) + v * (c - a);
-            let dist = 10f32.powi(5 + (i % 4) as i32);
+            let dist = 10f32.powi(5 + i % 4);
             let dir = rng.unit_vector();
             Ray::new(target - dir * dist, dir)
         })

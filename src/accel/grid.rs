@@ -281,7 +281,8 @@ impl<P: Primitives> Grid<P> {
                 return;
             }
         }
-        if !(t0 <= t1) {
+        // a NaN bound (never expected) counts as a miss, as `!(t0 <= t1)` would
+        if t0.partial_cmp(&t1).is_none_or(|o| o.is_gt()) {
             return;
         }
         let mut cell = [0i32; 3];
