@@ -56,7 +56,9 @@ const PRIMITIVE_MARGIN_UNITS: f32 = 64.0;
 /// size 5e4 took 20034 (octree) and 33978 (kd-tree) primitive tests per ray against
 /// 7.2 and 4.7 for the mesh alone; now 24 and 23 (tests/hostile_scenes.rs). What this
 /// margin does not bound is the traversal's rounding of plane distances, a few units of
-/// the distance from the ray origin: see docs/robustness.md, "Assignment margins".
+/// the distance from the ray origin: the traversals bound that themselves
+/// ([`PLANE_DISTANCE_ERROR`], the grid's f64 walk); see docs/robustness.md, "Assignment
+/// margins".
 pub fn primitive_margin(b: &Aabb) -> f32 {
     let extent = b.extent().max_element();
     let magnitude = b.min.abs().max(b.max.abs()).max_element();
