@@ -183,3 +183,57 @@ fn rays_crossing_region_corners_near_walls_agree_with_brute_force() {
         );
     }
 }
+
+/// Rays from very far away (1e5 to 1e8 scene sizes) aimed at points on the triangles of a
+/// unit-scale soup: the traversal's plane distances are rounded by a few `u` of the
+/// distance, far more than any margin relative to the primitives or the regions.
+#[test]
+fn rays_from_far_away_agree_with_brute_force() {
+    use rayon::prelude::*;
+    let prims = triangle_soup(2000, 77);
+    let corners = corners_of(&prims);
+    let bf = BruteForce::new(prims.clone());
+    let mut rng = Rng(99);
+    let rays: Vec<Ray> = (0..40_000)
+        .map(|i| {
+            let [a, b, c] = corners[rng.next_u64() as usize % corners.len()];
+            let (u, v) = (rng.f32(), rng.f32());
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            let target = a + u * (b - a) + v * (c - a);
+            let dist = 10f32.powi(5 + i % 4);
+            let dir = rng.unit_vector();
+            Ray::new(target - dir * dist, dir)
+        })
+        .collect();
+    let want: Vec<_> = rays
+        .par_iter()
+        .map(|r| bf.closest_hit(r).map(|h| (h.t, h.prim)))
+        .collect();
+    assert!(want.iter().filter(|w| w.is_some()).count() > 30_000);
+    let mut failures = Vec::new();
+    for kind in AccelKind::ALL {
+        let a = kind.build(prims.clone());
+        let bad: Vec<usize> = (0..rays.len())
+            .into_par_iter()
+            .filter(|&i| {
+                let got = a.closest_hit(&rays[i]).map(|h| (h.t, h.prim));
+                // an exact tie in t may resolve to either primitive
+                got.map(|g| g.0) != want[i].map(|w| w.0)
+            })
+            .collect();
+        eprintln!("{kind}: {} of {} differ", bad.len(), rays.len());
+        if let Some(&i) = bad.first() {
+            failures.push(format!(
+                "{kind}: {} of {} rays differ from brute force, first {:?}",
+                bad.len(),
+                rays.len(),
+                rays[i]
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

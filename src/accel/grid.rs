@@ -2,8 +2,8 @@
 //! Algorithm for Ray Tracing", Eurographics 1987) and per-ray mailboxing.
 
 use super::spatial::{
-    CountedTraversal, LeafSink, Mailbox, TraversalCounts, bounds_and_margins, clip, grown,
-    moves_along, region_margin,
+    CountedTraversal, LeafSink, Mailbox, PLANE_DISTANCE_ERROR, TraversalCounts, bounds_and_margins,
+    grown, moves_along, region_margin,
 };
 use super::{AccelInfo, Primitives};
 use crate::geometry::{Aabb, RayQuery};
@@ -250,6 +250,15 @@ impl<P: Primitives> Grid<P> {
     }
 
     /// The DDA walk shared by closest hit, any hit and filtered queries (`sink`).
+    ///
+    /// Carried in f64 from the exact f32 inputs (origin, direction, the f32 cell planes
+    /// the build assigned primitives against): the entry, the start cell and every
+    /// boundary distance `(x - o) / d` (computed freshly each step, no accumulation)
+    /// are within `2^-51` of the distance from the origin, so the walk follows the exact
+    /// ray to within a small fraction of the cells' assignment margin (`32 u` of a
+    /// cell's extent, [`region_margin`]) for origins up to about `2^32` cell sizes away
+    /// (docs/robustness.md, "Assignment margins"). In f32 the entry point `o + t d`
+    /// alone was off by `u |o|`, several cells for `|o| ~ 1e8`.
     #[inline(always)]
     fn traverse<const COUNT: bool, S: LeafSink>(
         &self,
@@ -257,17 +266,34 @@ impl<P: Primitives> Grid<P> {
         counts: &mut TraversalCounts,
         sink: &mut S,
     ) {
-        let Some((t0, _t1)) = clip(&self.bounds, q) else {
-            return;
-        };
-        let entry = q.origin + q.dir * t0;
-        let mut cell = cell_of(entry, self.bounds.min, self.inv_cell_size, self.res);
-        let mut step = [0i32; 3];
-        let mut next_t = [f32::INFINITY; 3];
+        let o = [0, 1, 2].map(|a| q.origin[a] as f64);
+        let d = [0, 1, 2].map(|a| q.dir[a] as f64);
+        let moving = [0, 1, 2].map(|a| moves_along(q, a));
+        // Clip to the grid box in f64 (parallel axes: inside the slab or a miss).
+        let (mut t0, mut t1) = (q.tmin as f64, q.tmax as f64);
         for a in 0..3 {
-            if moves_along(q, a) {
+            let (lo, hi) = (self.bounds.min[a] as f64, self.bounds.max[a] as f64);
+            if moving[a] {
+                let (ta, tb) = ((lo - o[a]) / d[a], (hi - o[a]) / d[a]);
+                t0 = t0.max(ta.min(tb));
+                t1 = t1.min(ta.max(tb));
+            } else if !(lo <= o[a] && o[a] <= hi) {
+                return;
+            }
+        }
+        // a NaN bound (never expected) counts as a miss, as `!(t0 <= t1)` would
+        if t0.partial_cmp(&t1).is_none_or(|o| o.is_gt()) {
+            return;
+        }
+        let mut cell = [0i32; 3];
+        let mut step = [0i32; 3];
+        let mut next_t = [f64::INFINITY; 3];
+        for a in 0..3 {
+            let p = if moving[a] { o[a] + t0 * d[a] } else { o[a] };
+            cell[a] = self.start_cell(a, p);
+            if moving[a] {
                 step[a] = if q.dir[a] > 0.0 { 1 } else { -1 };
-                next_t[a] = self.boundary_t(q, a, cell[a], step[a]);
+                next_t[a] = self.boundary_t(o[a], d[a], a, cell[a], step[a]);
             }
         }
         let mut mailbox = Mailbox::new();
@@ -285,9 +311,10 @@ impl<P: Primitives> Grid<P> {
                 }
             }
             // Next cell across the nearest boundary. Stop when the closest hit so far (or
-            // the ray's own tmax) lies inside this cell: every primitive of a later cell is
-            // hit beyond this cell's exit (up to rounding, which the assignment margin
-            // covers by putting such primitives in this cell too).
+            // the ray's own tmax) is at or before the next cell's entry, lowered by
+            // PLANE_DISTANCE_ERROR: the f32 `t` of a hit in a later cell is rounded by a
+            // few `u` of the distance (the primitive test's error), so a hit whose exact
+            // `t` is beyond the boundary may still compare nearer than the one kept.
             let axis = if next_t[0] <= next_t[1] && next_t[0] <= next_t[2] {
                 0
             } else if next_t[1] <= next_t[2] {
@@ -296,24 +323,47 @@ impl<P: Primitives> Grid<P> {
                 2
             };
             let exit = next_t[axis];
-            if sink.tmax() <= exit || step[axis] == 0 {
+            let exit_lb = exit - PLANE_DISTANCE_ERROR as f64 * exit.abs();
+            if sink.tmax() as f64 <= exit_lb || step[axis] == 0 {
                 return;
             }
             cell[axis] += step[axis];
             if cell[axis] < 0 || cell[axis] >= self.res[axis] {
                 return;
             }
-            next_t[axis] = self.boundary_t(q, axis, cell[axis], step[axis]);
+            next_t[axis] = self.boundary_t(o[axis], d[axis], axis, cell[axis], step[axis]);
         }
     }
 
-    /// Distance to the boundary of `cell` the ray leaves through along `a`, computed from
-    /// the origin each time (no accumulated increments, so no drift over long walks).
+    /// Position of plane `k` along `a`, exactly as the build's cell boxes place it (f32).
     #[inline(always)]
-    fn boundary_t(&self, q: &RayQuery, a: usize, cell: i32, step: i32) -> f32 {
-        let plane = if step > 0 { cell + 1 } else { cell };
-        let x = self.bounds.min[a] + plane as f32 * self.cell_size[a];
-        (x - q.origin[a]) * q.inv_dir[a]
+    fn plane(&self, a: usize, k: i32) -> f64 {
+        (self.bounds.min[a] + k as f32 * self.cell_size[a]) as f64
+    }
+
+    /// The cell along `a` whose planes enclose coordinate `p` (clamped to the grid): a
+    /// first guess from the cell size, corrected against the planes themselves.
+    #[inline(always)]
+    fn start_cell(&self, a: usize, p: f64) -> i32 {
+        let last = self.res[a] - 1;
+        let guess = (p - self.bounds.min[a] as f64) * self.inv_cell_size[a] as f64;
+        // NaN casts to 0; the clamp keeps it in the grid
+        let mut k = (guess.floor() as i64).clamp(0, last as i64) as i32;
+        while k > 0 && p < self.plane(a, k) {
+            k -= 1;
+        }
+        while k < last && p >= self.plane(a, k + 1) {
+            k += 1;
+        }
+        k
+    }
+
+    /// Distance (f64) to the boundary of `cell` the ray leaves through along `a`,
+    /// computed from the origin each time (no accumulated increments).
+    #[inline(always)]
+    fn boundary_t(&self, o: f64, d: f64, a: usize, cell: i32, step: i32) -> f64 {
+        let k = if step > 0 { cell + 1 } else { cell };
+        (self.plane(a, k) - o) / d
     }
 }
 

@@ -11,8 +11,8 @@
 //! within the assignment margin of the plane go to both children.
 
 use super::spatial::{
-    CountedTraversal, LeafSink, TraversalCounts, bounds_and_margins, boxes_overlap, clip, grown,
-    moves_along, region_margin,
+    CountedTraversal, LeafSink, TraversalCounts, bounds_and_margins, boxes_overlap,
+    clip_conservative, grown, moves_along, plane_error, region_margin,
 };
 use super::{AccelInfo, Primitives};
 use crate::geometry::{Aabb, RayQuery};
@@ -269,7 +269,11 @@ impl<P: Primitives> KdTree<P> {
         mut sink: S,
     ) -> (S, TraversalCounts) {
         let mut counts = TraversalCounts::default();
-        let Some((mut tn, mut tf)) = clip(&self.bounds, q) else {
+        // Conservative intervals throughout (Ize 2013; pbrt-v4 §6.8): `[tn, tf]` always
+        // contains the exact ray's interval in the current node, so no leaf the exact
+        // ray enters is skipped, and the traversal stops only when the nearest hit is
+        // at or before the *lower bound* of the next node's entry.
+        let Some((mut tn, mut tf)) = clip_conservative(&self.bounds, q) else {
             return (sink, counts);
         };
         let mut stack = [(0u32, 0.0f32, 0.0f32); STACK_SIZE];
@@ -289,21 +293,23 @@ impl<P: Primitives> KdTree<P> {
                     node = below + (q.origin[a] > split) as usize;
                     continue;
                 }
+                // The exact crossing lies in [ts - e, ts + e] (PLANE_DISTANCE_ERROR).
                 let ts = (split - q.origin[a]) * q.inv_dir[a];
+                let e = plane_error(ts);
                 let (near, far) = if q.dir[a] > 0.0 {
                     (below, below + 1)
                 } else {
                     (below + 1, below)
                 };
-                if ts > tf {
+                if ts - e > tf {
                     node = near;
-                } else if ts < tn {
+                } else if ts + e < tn {
                     node = far;
                 } else {
-                    stack[sp] = (far as u32, ts, tf);
+                    stack[sp] = (far as u32, tn.max(ts - e), tf);
                     sp += 1;
                     node = near;
-                    tf = ts;
+                    tf = tf.min(ts + e);
                 }
                 continue;
             }
@@ -314,10 +320,9 @@ impl<P: Primitives> KdTree<P> {
                     return (sink, counts);
                 }
             }
-            // A hit inside this leaf's interval is the closest: later leaves lie beyond.
-            if sink.tmax() <= tf {
-                return (sink, counts);
-            }
+            // No `sink.tmax() <= tf` shortcut: `tf` is an upper bound of this leaf's exit,
+            // and the next leaf may be entered before it. A pending node is visited only
+            // if the lower bound `a` of its entry is before the nearest hit.
             loop {
                 if sp == 0 {
                     return (sink, counts);

@@ -10,8 +10,8 @@
 //! triangles, would otherwise be copied into all eight children at every level).
 
 use super::spatial::{
-    CountedTraversal, LeafSink, TraversalCounts, bounds_and_margins, boxes_overlap, clip, grown,
-    moves_along, region_margin,
+    CountedTraversal, LeafSink, TraversalCounts, bounds_and_margins, boxes_overlap,
+    clip_conservative, grown, moves_along, plane_error, region_margin,
 };
 use super::{AccelInfo, Primitives};
 use crate::geometry::{Aabb, RayQuery};
@@ -206,16 +206,23 @@ impl<P: Primitives> Octree<P> {
             sink,
             counts: TraversalCounts::default(),
         };
-        if let Some((t0, t1)) = clip(&self.bounds, q) {
+        if let Some((t0, t1)) = clip_conservative(&self.bounds, q) {
             self.visit::<COUNT, S>(0, self.bounds.min, self.bounds.max, t0, t1, q, &mut s);
         }
         (s.sink, s.counts)
     }
 
-    /// Visits the subtree of `node` (box `lo..hi`) over the ray interval `[t0, t1]`.
-    /// Returns true when the traversal is finished: the sink says so (any hit found),
-    /// or the nearest hit kept is nearer than the exit of this subtree's last visited
-    /// child.
+    /// Visits the subtree of `node` (box `lo..hi`) over the ray interval `[t0, t1]`, a
+    /// conservative interval: it contains the exact ray's interval inside the box.
+    /// Returns true when the sink ends the traversal (any hit found).
+    ///
+    /// The children's intervals come from the nine plane distances (lo, mid, hi per
+    /// axis), each widened by its error bound ([`plane_error`], Ize 2013): the order in
+    /// which the ray crosses the three middle planes is uncertain when two crossings
+    /// are within their bounds, so instead of a 2x2x2 DDA every child whose widened
+    /// interval overlaps `[t0, t1]` is visited, in order of its entry's lower bound, and
+    /// the level stops once the nearest hit is at or before the next child's entry
+    /// lower bound. Axes the ray does not move along keep the exact origin-side rule.
     #[allow(clippy::too_many_arguments)]
     fn visit<const COUNT: bool, S: LeafSink>(
         &self,
@@ -238,49 +245,63 @@ impl<P: Primitives> Octree<P> {
             }
             return false;
         }
-        // Which half the ray is in at t0 along each axis, and when it crosses the middle.
         let mid = 0.5 * (lo + hi);
-        let mut child = 0usize;
-        let mut cross = [f32::INFINITY; 3];
+        // Per axis and half (0: lower, 1: upper): the conservative [enter, exit] of the
+        // ray in that half-slab, or for a parallel axis the whole line on the origin's
+        // side and nothing on the other.
+        let mut slab = [[(f32::NEG_INFINITY, f32::INFINITY); 2]; 3];
         for a in 0..3 {
-            let upper = if moves_along(q, a) {
-                let tm = (mid[a] - q.origin[a]) * q.inv_dir[a];
-                if tm > t0 {
-                    cross[a] = tm;
-                    q.dir[a] < 0.0
-                } else {
-                    q.dir[a] > 0.0
+            if moves_along(q, a) {
+                let t = [lo[a], mid[a], hi[a]].map(|x| (x - q.origin[a]) * q.inv_dir[a]);
+                let lower = t.map(|t| t - plane_error(t));
+                let upper = t.map(|t| t + plane_error(t));
+                for h in 0..2 {
+                    // half h lies between planes h and h + 1
+                    slab[a][h] = if q.dir[a] > 0.0 {
+                        (lower[h], upper[h + 1])
+                    } else {
+                        (lower[h + 1], upper[h])
+                    };
                 }
             } else {
-                q.origin[a] >= mid[a]
-            };
-            child |= (upper as usize) << a;
+                let h = (q.origin[a] < mid[a]) as usize;
+                slab[a][h] = (f32::INFINITY, f32::NEG_INFINITY);
+            }
         }
-        let mut t = t0;
-        loop {
-            let axis = if cross[0] <= cross[1] && cross[0] <= cross[2] {
-                0
-            } else if cross[1] <= cross[2] {
-                1
-            } else {
-                2
-            };
-            let exit = cross[axis].min(t1);
-            let (clo, chi) = child_box(lo, hi, mid, child);
-            if self.visit::<COUNT, S>(n.first as usize + child, clo, chi, t, exit, q, s) {
-                return true;
+        // (entry lower bound, exit upper bound, child), at most 8, sorted by entry.
+        let mut order = [(0.0f32, 0.0f32, 0u8); 8];
+        let mut k = 0usize;
+        for c in 0..8usize {
+            let mut enter = t0;
+            let mut exit = t1;
+            for (a, halves) in slab.iter().enumerate() {
+                let (e, x) = halves[c >> a & 1];
+                enter = enter.max(e);
+                exit = exit.min(x);
             }
-            // Closest hit before the next child's entry: nothing later can be nearer.
-            if s.sink.tmax() <= exit {
-                return true;
+            if enter <= exit {
+                let mut j = k;
+                while j > 0 && order[j - 1].0 > enter {
+                    order[j] = order[j - 1];
+                    j -= 1;
+                }
+                order[j] = (enter, exit, c as u8);
+                k += 1;
             }
-            if cross[axis] >= t1 {
+        }
+        for &(enter, exit, c) in &order[..k] {
+            // Closest hit at or before this child's earliest possible entry: nothing in
+            // it or in the later children can be nearer.
+            if s.sink.tmax() <= enter {
                 return false;
             }
-            child ^= 1 << axis;
-            cross[axis] = f32::INFINITY;
-            t = exit;
+            let c = c as usize;
+            let (clo, chi) = child_box(lo, hi, mid, c);
+            if self.visit::<COUNT, S>(n.first as usize + c, clo, chi, enter, exit, q, s) {
+                return true;
+            }
         }
+        false
     }
 }
 

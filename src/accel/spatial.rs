@@ -12,7 +12,7 @@
 
 use super::filter::{FilterSink, HitFilter, QueryOptions};
 use super::{Accel, AccelInfo, Primitives};
-use crate::geometry::{Aabb, Hit, Ray, RayQuery};
+use crate::geometry::{Aabb, Hit, Ray, RayQuery, gamma};
 use glam::Vec3;
 
 /// Traversal work of one ray: node (cell, voxel, BVH node) visits and primitive tests.
@@ -56,7 +56,9 @@ const PRIMITIVE_MARGIN_UNITS: f32 = 64.0;
 /// size 5e4 took 20034 (octree) and 33978 (kd-tree) primitive tests per ray against
 /// 7.2 and 4.7 for the mesh alone; now 24 and 23 (tests/hostile_scenes.rs). What this
 /// margin does not bound is the traversal's rounding of plane distances, a few units of
-/// the distance from the ray origin: see docs/robustness.md, "Assignment margins".
+/// the distance from the ray origin: the traversals bound that themselves
+/// ([`PLANE_DISTANCE_ERROR`], the grid's f64 walk); see docs/robustness.md, "Assignment
+/// margins".
 pub fn primitive_margin(b: &Aabb) -> f32 {
     let extent = b.extent().max_element();
     let magnitude = b.min.abs().max(b.max.abs()).max_element();
@@ -116,6 +118,49 @@ pub fn clip(b: &Aabb, q: &RayQuery) -> Option<(f32, f32)> {
         };
         enter = enter.max((near - q.origin[a]) * q.inv_dir[a]);
         exit = exit.min((far - q.origin[a]) * q.inv_dir[a]);
+    }
+    (enter <= exit).then_some((enter, exit))
+}
+
+/// Relative bound on the error of a plane distance `t = (x - o) * inv_dir` computed in
+/// f32, as used by the conservative traversal decisions: `2 γ(3)`.
+///
+/// Derivation (Ize 2013, "Robust BVH Ray Traversal", JCGT 2(2); pbrt-v4 §6.8.2): the
+/// difference `x - o`, the reciprocal `1 / d` and the product each round once, so the
+/// computed `t̃ = t* (1 + δ)` with `|δ| <= γ(3)` relative to the exact distance `t*`;
+/// then `|t̃ - t*| <= γ(3) |t*| <= γ(3) |t̃| / (1 - γ(3))`, which is below `2 γ(3) |t̃|`.
+/// The factor 2 (Ize's far-plane scale `1 + 2 γ(3)`, [`crate::geometry::ROBUST_FAR_SCALE`]
+/// in spirit) also covers the rounding of the bound itself, and leaves as much again for
+/// the primitive test's own rounding of a hit's `t` (a few `u`, compared with these
+/// bounds when a traversal decides to stop).
+pub const PLANE_DISTANCE_ERROR: f32 = 2.0 * gamma(3);
+
+/// Bound on the error of the f32 plane distance `t` ([`PLANE_DISTANCE_ERROR`] `|t|`),
+/// at most `f32::MAX` so that `t ± plane_error(t)` stays `±inf` for an infinite `t`
+/// (never NaN).
+#[inline(always)]
+pub fn plane_error(t: f32) -> f32 {
+    (PLANE_DISTANCE_ERROR * t.abs()).min(f32::MAX)
+}
+
+/// Like [`clip`], but conservative: every slab distance is widened by its error bound
+/// ([`plane_error`]) before the comparison, so the result contains the exact ray's
+/// interval inside `b` (within the query's `[tmin, tmax]`), and `None` means the exact
+/// ray misses `b`. The returned bounds are lower/upper bounds, not exact distances.
+#[inline]
+pub fn clip_conservative(b: &Aabb, q: &RayQuery) -> Option<(f32, f32)> {
+    let mut enter = q.tmin;
+    let mut exit = q.tmax;
+    for a in 0..3 {
+        let (near, far) = if q.inv_dir[a].is_sign_negative() {
+            (b.max[a], b.min[a])
+        } else {
+            (b.min[a], b.max[a])
+        };
+        let tn = (near - q.origin[a]) * q.inv_dir[a];
+        let tf = (far - q.origin[a]) * q.inv_dir[a];
+        enter = enter.max(tn - plane_error(tn));
+        exit = exit.min(tf + plane_error(tf));
     }
     (enter <= exit).then_some((enter, exit))
 }
