@@ -100,28 +100,6 @@ pub fn boxes_overlap(a: &Aabb, b: &Aabb) -> bool {
     a.min.cmple(b.max).all() && b.min.cmple(a.max).all()
 }
 
-/// The part `(enter, exit)` of the ray's interval inside `b`, or `None`.
-///
-/// Same plane selection as [`Aabb::intersect`] (by the sign of `inv_dir`, so `-0.0`
-/// picks the planes of a negative direction and an empty box is never entered), and the
-/// same NaN rule: a ray lying in a slab plane gives `0 * inf = NaN`, which `max`/`min`
-/// ignore, so the ray counts as inside that slab.
-#[inline]
-pub fn clip(b: &Aabb, q: &RayQuery) -> Option<(f32, f32)> {
-    let mut enter = q.tmin;
-    let mut exit = q.tmax;
-    for a in 0..3 {
-        let (near, far) = if q.inv_dir[a].is_sign_negative() {
-            (b.max[a], b.min[a])
-        } else {
-            (b.min[a], b.max[a])
-        };
-        enter = enter.max((near - q.origin[a]) * q.inv_dir[a]);
-        exit = exit.min((far - q.origin[a]) * q.inv_dir[a]);
-    }
-    (enter <= exit).then_some((enter, exit))
-}
-
 /// Relative bound on the error of a plane distance `t = (x - o) * inv_dir` computed in
 /// f32, as used by the conservative traversal decisions: `2 γ(3)`.
 ///
@@ -143,10 +121,16 @@ pub fn plane_error(t: f32) -> f32 {
     (PLANE_DISTANCE_ERROR * t.abs()).min(f32::MAX)
 }
 
-/// Like [`clip`], but conservative: every slab distance is widened by its error bound
-/// ([`plane_error`]) before the comparison, so the result contains the exact ray's
-/// interval inside `b` (within the query's `[tmin, tmax]`), and `None` means the exact
-/// ray misses `b`. The returned bounds are lower/upper bounds, not exact distances.
+/// The part `(enter, exit)` of the ray's interval inside `b`, or `None`, conservatively:
+/// every slab distance is widened by its error bound ([`plane_error`]) before the
+/// comparison, so the result contains the exact ray's interval inside `b` (within the
+/// query's `[tmin, tmax]`), and `None` means the exact ray misses `b`. The returned
+/// bounds are lower/upper bounds, not exact distances.
+///
+/// Same plane selection as [`Aabb::intersect`] (by the sign of `inv_dir`, so `-0.0`
+/// picks the planes of a negative direction and an empty box is never entered), and the
+/// same NaN rule: a ray lying in a slab plane gives `0 * inf = NaN`, which `max`/`min`
+/// ignore, so the ray counts as inside that slab.
 #[inline]
 pub fn clip_conservative(b: &Aabb, q: &RayQuery) -> Option<(f32, f32)> {
     let mut enter = q.tmin;
