@@ -28,6 +28,8 @@ pub struct Overrides {
     pub glossy_samples: Option<u32>,
     pub lens_samples: Option<u32>,
     pub time_samples: Option<u32>,
+    /// Directions towards the environment per lit shading point.
+    pub environment_samples: Option<u32>,
     pub sampler: Option<SamplerKind>,
     pub filter: Option<FilterKind>,
     /// Shadows through glass on or off (`integrator::shadow`).
@@ -228,6 +230,9 @@ impl RenderJob {
         o.samples.glossy = ov.glossy_samples.unwrap_or(o.samples.glossy);
         o.samples.lens = ov.lens_samples.unwrap_or(o.samples.lens);
         o.samples.time = ov.time_samples.unwrap_or(o.samples.time);
+        o.samples.environment = ov
+            .environment_samples
+            .unwrap_or(o.samples.environment);
         o.sampler = ov.sampler.unwrap_or(o.sampler);
         o.filter = ov.filter.unwrap_or(o.filter);
         o.transmitted_shadows = ov.transmitted_shadows.unwrap_or(o.transmitted_shadows);
@@ -377,12 +382,13 @@ impl RenderReport {
             s += &format!("part     {part}\n");
         }
         s += &format!(
-            "samples  eye {} x shadow {} x glossy {} x lens {} x time {}, {} sampler, {} filter\n",
+            "samples  eye {} x shadow {} x glossy {} x lens {} x time {}, environment {}, {} sampler, {} filter\n",
             self.spp,
             self.samples.shadow,
             self.samples.glossy,
             self.samples.lens,
             self.samples.time,
+            self.samples.environment,
             self.sampler,
             self.filter
         );

@@ -310,6 +310,9 @@ struct SamplingArgs {
     /// Shutter times per lens sample (default: the scene's).
     #[arg(long)]
     time_samples: Option<u32>,
+    /// Directions towards the environment per lit shading point (default: the scene's).
+    #[arg(long)]
+    environment_samples: Option<u32>,
 }
 
 /// Camera flags (README.md, "Camera from the command line"): replace the scene's camera
@@ -428,6 +431,7 @@ fn render(args: RenderArgs) -> packet_render::Result<()> {
             glossy_samples: args.sampling.glossy_samples,
             lens_samples: args.sampling.lens_samples,
             time_samples: args.sampling.time_samples,
+            environment_samples: args.sampling.environment_samples,
             sampler: args.sampling.sampler,
             filter: args.sampling.filter,
             transmitted_shadows: args.transmitted_shadows,

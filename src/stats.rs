@@ -40,11 +40,13 @@ pub struct EffectSamplesDrawn {
     pub time: u64,
     pub light: u64,
     pub glossy: u64,
+    /// Directions drawn towards the environment.
+    pub environment: u64,
 }
 
 impl EffectSamplesDrawn {
     pub fn total(&self) -> u64 {
-        self.lens + self.time + self.light + self.glossy
+        self.lens + self.time + self.light + self.glossy + self.environment
     }
 }
 
@@ -54,6 +56,7 @@ impl AddAssign for EffectSamplesDrawn {
         self.time += o.time;
         self.light += o.light;
         self.glossy += o.glossy;
+        self.environment += o.environment;
     }
 }
 

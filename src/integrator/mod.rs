@@ -5,6 +5,8 @@
 pub mod adaptive;
 pub mod aov;
 pub mod budget;
+pub(crate) mod environment;
+pub mod piecewise;
 pub mod region;
 pub mod sampling;
 pub mod shadow;
@@ -27,7 +29,7 @@ pub const MAX_IMAGE_SIDE: u32 = 65_536;
 pub const MAX_SPP: u32 = 1 << 16;
 /// Largest recursion depth accepted.
 pub const MAX_DEPTH: u32 = 64;
-/// Largest per-effect sample count (shadow, glossy, lens, time) accepted.
+/// Largest per-effect sample count (shadow, glossy, lens, time, environment) accepted.
 pub const MAX_EFFECT_SAMPLES: u32 = 1024;
 
 /// Rejects per-effect sample counts outside `1..=MAX_EFFECT_SAMPLES`.
@@ -37,6 +39,7 @@ pub fn validate_sample_counts(c: &SampleCounts) -> Result<()> {
         ("glossy", c.glossy),
         ("lens", c.lens),
         ("time", c.time),
+        ("environment", c.environment),
     ] {
         if n == 0 || n > MAX_EFFECT_SAMPLES {
             return Err(Error::parameter(

@@ -37,6 +37,8 @@ pub enum SobolDim {
     Glossy,
     /// Translucent lobe directions at a camera ray's first hit.
     Translucency,
+    /// Directions towards the environment at a camera ray's first hit.
+    Environment,
 }
 
 impl SobolDim {
@@ -47,6 +49,7 @@ impl SobolDim {
             SobolDim::Time => 3,
             SobolDim::Glossy => 4,
             SobolDim::Translucency => 5,
+            SobolDim::Environment => 6,
             SobolDim::Light(i) => 16 + i as u64,
         }
     }

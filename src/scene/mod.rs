@@ -10,15 +10,18 @@
 mod camera;
 mod camera_override;
 mod checks;
+mod environment;
 mod light;
 pub mod load;
 mod material;
 mod motion;
 pub mod procedural;
+pub mod sky;
 
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
 pub use camera_override::{CameraOverrides, Side, UpAxis, parse_vec3};
 pub use checks::nothing_visible_warning;
+pub use environment::{Environment, EnvironmentSample, MAX_MAP_SIDE, direction_to_uv, uv_to_direction};
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
 pub use motion::MotionSet;
@@ -26,6 +29,7 @@ pub use motion::MotionSet;
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
 use glam::Vec3;
+use std::sync::Arc;
 
 /// Triangle mesh, structure-of-arrays. All meshes of a scene are merged into one.
 #[derive(Clone, Debug, Default)]
@@ -179,6 +183,9 @@ pub struct Features {
     pub translucency: bool,
     /// The camera has a lens (`aperture` > 0): lens samples are drawn.
     pub depth_of_field: bool,
+    /// A non-black `[environment]`: it lights lit surfaces through `environment`
+    /// samples per shading point (shadow rays to infinity).
+    pub environment: bool,
     /// The shutter is open over an interval and something (geometry or the eye)
     /// moves: shutter times are drawn.
     pub motion: bool,
@@ -203,6 +210,7 @@ impl Features {
             (self.glossy, "glossy"),
             (self.translucency, "translucency"),
             (self.depth_of_field, "depth_of_field"),
+            (self.environment, "environment"),
             (self.motion, "motion"),
         ];
         all.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect()
@@ -239,6 +247,8 @@ pub struct RenderSettings {
 ///   directional lights always take one shadow ray).
 /// - `glossy`: rays per glossy or translucent lobe at the first hit of a camera ray;
 ///   deeper hits take one, which keeps the ray tree from growing exponentially.
+/// - `environment`: directions drawn towards the environment (a shadow ray to
+///   infinity each) at every lit shading point, as `shadow` is for each area light.
 ///
 /// A count applies only when the scene has the effect: in a scene without depth of
 /// field `lens` is ignored, and so on.
@@ -248,6 +258,7 @@ pub struct SampleCounts {
     pub glossy: u32,
     pub lens: u32,
     pub time: u32,
+    pub environment: u32,
 }
 
 impl Default for SampleCounts {
@@ -257,6 +268,7 @@ impl Default for SampleCounts {
             glossy: 1,
             lens: 1,
             time: 1,
+            environment: 1,
         }
     }
 }
@@ -288,7 +300,12 @@ pub struct Scene {
     pub camera_effects: CameraEffects,
     /// Moving geometry (empty for a static scene).
     pub motion: MotionSet,
+    /// Radiance of rays that miss everything when there is no `environment`: a
+    /// backdrop that lights nothing.
     pub background: Vec3,
+    /// Radiance from infinitely far away: seen by rays that miss (it replaces
+    /// `background`) and lighting lit surfaces through shadow rays to infinity.
+    pub environment: Option<Arc<Environment>>,
     pub ambient: Vec3,
     pub settings: RenderSettings,
     pub bounds: Aabb,
@@ -302,6 +319,16 @@ impl Scene {
         self.camera
             .frame(width, height)
             .with_effects(&self.camera_effects)
+    }
+
+    /// Radiance seen by a ray with direction `dir` that hits nothing: the
+    /// environment's if there is one, else the background colour.
+    #[inline]
+    pub fn miss_radiance(&self, dir: Vec3) -> Vec3 {
+        match &self.environment {
+            Some(env) => env.radiance(dir),
+            None => self.background,
+        }
     }
 
     pub fn primitive_count(&self) -> usize {
@@ -320,6 +347,7 @@ pub struct SceneBuilder {
     pub camera_effects: CameraEffects,
     pub motion: MotionSet,
     pub background: Vec3,
+    pub environment: Option<Arc<Environment>>,
     pub ambient: Vec3,
     pub settings: RenderSettings,
 }
@@ -593,6 +621,7 @@ impl SceneBuilder {
                 .any(|l| matches!(l, Light::Directional { .. })),
             area_lights: self.lights.iter().any(Light::is_area),
             depth_of_field: self.camera_effects.has_depth_of_field(),
+            environment: self.environment.as_ref().is_some_and(|e| !e.is_black()),
             motion: self.camera_effects.shutter_open()
                 && (self.camera_effects.eye1.is_some_and(|e| e != camera.eye)
                     || self.motion.sphere_velocity.iter().any(|v| *v != Vec3::ZERO)
@@ -628,6 +657,7 @@ impl SceneBuilder {
             camera_effects: self.camera_effects,
             motion: self.motion,
             background: self.background,
+            environment: self.environment,
             ambient: self.ambient,
             settings: self.settings,
             bounds,

@@ -35,6 +35,7 @@ struct SceneFile {
     camera: Option<Spanned<CameraDef>>,
     background: Option<V3>,
     ambient: Option<V3>,
+    environment: Option<Spanned<super::toml_environment::EnvironmentDef>>,
     #[serde(default)]
     materials: BTreeMap<String, MaterialDef>,
     #[serde(default)]
@@ -63,7 +64,7 @@ struct RenderDef {
     transmitted_shadows: Option<bool>,
 }
 
-/// `samples = { eye = 1, shadow = 16, glossy = 4, lens = 1, time = 1 }`.
+/// `samples = { eye = 1, shadow = 16, glossy = 4, lens = 1, time = 1, environment = 4 }`.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SamplesDef {
@@ -72,6 +73,7 @@ struct SamplesDef {
     glossy: Option<Spanned<u32>>,
     lens: Option<Spanned<u32>>,
     time: Option<Spanned<u32>>,
+    environment: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize)]
@@ -378,6 +380,10 @@ impl<'a> Builder<'a> {
         if let Some(a) = &file.ambient {
             self.b.ambient = cx.color(a, "ambient")?;
         }
+        if let Some(e) = &file.environment {
+            let env = super::toml_environment::environment(e.get_ref(), e.span(), cx.path, cx.text)?;
+            self.b.environment = Some(std::sync::Arc::new(env));
+        }
         if let Some(c) = &file.camera {
             self.b.camera_effects = camera_effects(cx, c.get_ref())?;
             self.b.camera = Some(self.camera(c)?);
@@ -445,6 +451,7 @@ impl<'a> Builder<'a> {
                 (&n.glossy, "glossy", &mut s.samples.glossy),
                 (&n.lens, "lens", &mut s.samples.lens),
                 (&n.time, "time", &mut s.samples.time),
+                (&n.environment, "environment", &mut s.samples.environment),
             ];
             for (value, what, slot) in counts {
                 if let Some(v) = value {
