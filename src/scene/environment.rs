@@ -24,8 +24,8 @@
 //! which makes a Lambertian surface's estimate exact wherever the sky is unblocked.
 
 use crate::error::{Error, Result};
-use crate::integrator::piecewise::PiecewiseConstant2D;
-use crate::integrator::sampling::sample_phong_lobe;
+use crate::geometry::piecewise::PiecewiseConstant2D;
+use crate::geometry::warp::sample_phong_lobe;
 use glam::{Mat3, Quat, Vec3};
 use std::f32::consts::{PI, TAU};
 
