@@ -92,17 +92,14 @@ fn pdf_integrates_to_one_over_the_sphere() {
 }
 
 /// `χ²` statistic of observed against expected counts, cells with expected < 5 merged
-/// into one (pbrt's chi-square test of its warps), and the degrees of freedom. An
-/// observation in a cell of expected 0 makes it infinite.
+/// into one (pbrt's chi-square test of its warps; cells of expected 0 included, since
+/// on a turned map a cell's 8 x 8 integration points can all miss a texel that covers
+/// part of it), and the degrees of freedom.
 fn chi_square(observed: &[f64], expected: &[f64]) -> (f64, usize) {
     let (mut chi, mut dof) = (0.0, 0usize);
     let (mut pool_o, mut pool_e) = (0.0, 0.0);
     for (&o, &e) in observed.iter().zip(expected) {
-        if e == 0.0 {
-            if o > 0.0 {
-                return (f64::INFINITY, 1);
-            }
-        } else if e < 5.0 {
+        if e < 5.0 {
             pool_o += o;
             pool_e += e;
         } else {
@@ -162,7 +159,7 @@ fn cell_of(d: Vec3, cells_t: usize) -> usize {
 /// The sample warp is consistent with the pdf: a histogram of 400,000 sampled
 /// directions over a 64 x 128 `(θ, φ)` grid (twice the map's resolution, so the
 /// uniformity inside texels is tested too) passes a `χ²` test against the pdf
-/// integrated over each cell, no sample lands where the pdf is zero, and each sample's
+/// integrated over each cell, every sample has a positive pdf, and each sample's
 /// reported pdf and radiance equal `pdf(wi)` and `radiance(wi)`. The same test rejects
 /// directions drawn uniformly in `(u, v)` (the warp without its distribution), so it
 /// has the power to fail.
@@ -192,6 +189,7 @@ fn samples_follow_the_pdf() {
                 dropped += 1;
                 continue;
             };
+            assert!(s.pdf > 0.0);
             assert_eq!(s.pdf, env.pdf(n, s.wi));
             assert_eq!(s.radiance, env.radiance(s.wi));
             assert!((s.wi.length() - 1.0).abs() < 1e-5);
@@ -207,7 +205,7 @@ fn samples_follow_the_pdf() {
         assert!(z < 4.5, "{what}: χ² = {chi:.1} with {dof} dof, z = {z:.2}");
         let (chi_u, dof_u) = chi_square(&uniform, &expected);
         assert!(
-            chi_u.is_infinite() || chi_square_z(chi_u, dof_u) > 20.0,
+            chi_square_z(chi_u, dof_u) > 20.0,
             "{what}: the control passed: χ² = {chi_u:.1} with {dof_u} dof"
         );
     }

@@ -64,7 +64,7 @@ pub fn validate_sample_products(scene: &Scene, opts: &RenderOptions) -> Result<S
         area_lights * plan.shadow as u64 + other_lights
     } else {
         other_lights
-    };
+    } + plan.environment as u64;
     let glossy_per_hit = if f.glossy || f.translucency {
         plan.glossy as u64
     } else {

@@ -23,6 +23,9 @@ pub struct SamplePlan {
     pub time: u32,
     pub shadow: u32,
     pub glossy: u32,
+    /// Directions towards the environment per lit shading point; 0 when the scene has
+    /// no (non-black) environment.
+    pub environment: u32,
     pub sampler: SamplerKind,
     pub filter: FilterKind,
     /// The eye samples rendered, `eye_begin..eye_end` of `0..eye` (all of them unless
@@ -44,6 +47,11 @@ impl SamplePlan {
             time: if f.motion { opts.samples.time } else { 0 },
             shadow: opts.samples.shadow,
             glossy: opts.samples.glossy,
+            environment: if f.environment {
+                opts.samples.environment
+            } else {
+                0
+            },
             sampler: opts.sampler,
             filter: opts.filter,
             eye_begin: opts.sample_range.as_ref().map_or(0, |r| r.start),

@@ -206,7 +206,7 @@ impl Tracer<'_> {
     /// cutoff.
     fn radiance(&mut self, ray: &Ray, depth: u32, throughput: Vec3, pixel: u64, path: u64) -> Vec3 {
         let Some(hit) = self.accel.closest_hit(ray) else {
-            return self.shader.scene.background;
+            return self.shader.scene.miss_radiance(ray.dir);
         };
         let si = SurfaceInteraction::new(self.shader.scene, ray, &hit);
         let d = depth as usize;

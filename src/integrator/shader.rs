@@ -6,6 +6,7 @@
 
 use super::RenderOptions;
 use super::camera_rays::SamplePlan;
+use super::environment::{ShadowOrigin, environment_shadow_rays};
 use super::interaction::SurfaceInteraction;
 use super::optics::{dielectric, reflect, scatter_dir};
 use super::path_keys::{HitSet, child_path, hit_points};
@@ -442,6 +443,34 @@ impl Shader<'_> {
                     out.points = points;
                 }
             }
+        }
+        // The environment (`integrator::environment`): `environment` directions, each a
+        // shadow ray to infinity, in the shadow queue after the lights'.
+        if let Some(env) = &self.scene.environment
+            && self.plan.environment > 0
+        {
+            let n = self.plan.environment;
+            let mut points = std::mem::take(&mut out.points);
+            let set = HitSet {
+                seed: self.seed,
+                pixel,
+                path,
+                depth,
+                dim: SobolDim::Environment,
+            };
+            hit_points(self.plan.sampler, set, n, stream, &mut points);
+            drawn.environment += n as u64;
+            let at = ShadowOrigin {
+                base,
+                p_error: si.p_error,
+                n_geometric: si.n_geometric,
+                n_shading: si.n_shading,
+            };
+            let index = self.scene.lights.len() as u32;
+            environment_shadow_rays(env, &points, at, &reflectance, |ray, c| {
+                shadow(out, ray, c, index)
+            });
+            out.points = points;
         }
     }
 }

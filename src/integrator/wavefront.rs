@@ -84,7 +84,8 @@ impl Pipeline {
         let secondary = opts.max_depth > 0;
         Pipeline {
             shadow: lit && (f.point_lights || f.directional_lights),
-            area_shadow: lit && f.area_lights,
+            // The environment's sampled shadow rays share the area-light stage.
+            area_shadow: lit && (f.area_lights || f.environment),
             reflection: secondary && (f.mirror || f.glass),
             refraction: secondary && f.glass,
             glossy: secondary && f.glossy,
@@ -147,12 +148,16 @@ impl Workspace {
                 acc: Vec::new(),
                 pixel_index: Vec::new(),
                 next: p.child_queues().map(|on| on.then(RayQueue::default)),
-                shadow: scene
-                    .lights
-                    .iter()
+                // One queue per light, and one for the environment after them.
+                shadow: (0..scene.lights.len() + scene.environment.is_some() as usize)
                     .map(|_| ShadowQueue::default())
                     .collect(),
-                area: scene.lights.iter().map(Light::is_area).collect(),
+                area: scene
+                    .lights
+                    .iter()
+                    .map(Light::is_area)
+                    .chain(scene.environment.as_ref().map(|_| true))
+                    .collect(),
                 emitted: Emitted::default(),
                 rays: RayCounts::default(),
                 drawn: EffectSamplesDrawn::default(),
@@ -336,7 +341,7 @@ fn shade_queue(
         let slot = queue.slot[i];
         let weight = queue.weight[i];
         let Some(hit) = hit else {
-            sinks.acc[slot as usize] += weight * scene.background;
+            sinks.acc[slot as usize] += weight * scene.miss_radiance(queue.rays[i].dir);
             continue;
         };
         let ray = &queue.rays[i];
