@@ -230,9 +230,7 @@ impl RenderJob {
         o.samples.glossy = ov.glossy_samples.unwrap_or(o.samples.glossy);
         o.samples.lens = ov.lens_samples.unwrap_or(o.samples.lens);
         o.samples.time = ov.time_samples.unwrap_or(o.samples.time);
-        o.samples.environment = ov
-            .environment_samples
-            .unwrap_or(o.samples.environment);
+        o.samples.environment = ov.environment_samples.unwrap_or(o.samples.environment);
         o.sampler = ov.sampler.unwrap_or(o.sampler);
         o.filter = ov.filter.unwrap_or(o.filter);
         o.transmitted_shadows = ov.transmitted_shadows.unwrap_or(o.transmitted_shadows);

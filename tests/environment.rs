@@ -79,12 +79,11 @@ fn pdf_integrates_to_one_over_the_sphere() {
         ("map", map_env()),
         (
             "turned map",
-            map_env().with_frame(Vec3::new(1.0, 0.2, 0.5), 33.0).unwrap(),
+            map_env()
+                .with_frame(Vec3::new(1.0, 0.2, 0.5), 33.0)
+                .unwrap(),
         ),
-        (
-            "constant",
-            Environment::constant(Vec3::splat(0.5)).unwrap(),
-        ),
+        ("constant", Environment::constant(Vec3::splat(0.5)).unwrap()),
     ] {
         let total = integrate_pdf(&env, n, 1000);
         assert!((total - 1.0).abs() < tol, "{what}: ∫ pdf = {total}");
@@ -172,7 +171,9 @@ fn samples_follow_the_pdf() {
         ("map", map_env()),
         (
             "turned map",
-            map_env().with_frame(Vec3::new(0.0, 0.0, 1.0), 10.0).unwrap(),
+            map_env()
+                .with_frame(Vec3::new(0.0, 0.0, 1.0), 10.0)
+                .unwrap(),
         ),
     ] {
         let probs = cell_probabilities(&env, n, cells_t);
@@ -338,7 +339,11 @@ fn a_ray_that_misses_sees_the_texel_in_its_direction() {
                         continue;
                     }
                     let texel = texels[fv as usize * w + fu as usize];
-                    assert_eq!(film.get(x, y), texel, "{file} {integrator}: pixel ({x}, {y})");
+                    assert_eq!(
+                        film.get(x, y),
+                        texel,
+                        "{file} {integrator}: pixel ({x}, {y})"
+                    );
                     checked += 1;
                 }
             }
@@ -421,7 +426,8 @@ fn a_floor_under_an_occluder_is_darker_by_the_occluded_solid_angle() {
     for sky in skies {
         let mut means = Vec::new();
         for x in [0.0f32, 1.5] {
-            let scene = parse_toml_scene(&sky_shadow_scene([x, 0.0], sky), Path::new("t.toml")).unwrap();
+            let scene =
+                parse_toml_scene(&sky_shadow_scene([x, 0.0], sky), Path::new("t.toml")).unwrap();
             assert!(scene.features.environment);
             let opts = RenderOptions::from_scene(&scene);
             for integrator in IntegratorKind::ALL {
@@ -453,7 +459,10 @@ fn a_lambertian_floor_under_the_upper_hemisphere_reflects_its_albedo() {
     let (mean, se) = mean_and_se(&film, 0);
     // The sphere at distance ~70.7 blocks sin²α cos β ≈ 1.1e-5 of the hemisphere.
     let exact = 0.5 * (1.0 - 1.0 / (50f64 * 50.0 * 2.0 + 4.0) * 2.0 / (5004f64).sqrt());
-    assert!((mean - exact).abs() <= 4.0 * se + 1e-4, "{mean} ± {se}, exact {exact}");
+    assert!(
+        (mean - exact).abs() <= 4.0 * se + 1e-4,
+        "{mean} ± {se}, exact {exact}"
+    );
     assert!(se > 0.0, "map sampling of a hemisphere has variance");
 }
 
@@ -522,8 +531,16 @@ fn environment_keys_are_checked_with_locations() {
         ("map = \"missing.exr\"", "not found", 3),
         ("map = \"not-a-map.hdr\"", "cannot decode", 3),
         ("map = \"sky.png\"", "unsupported environment map format", 3),
-        ("map = { procedural = \"clouds\" }", "unknown procedural map", 3),
-        ("map = { procedural = \"sky\", sun = 1 }", "unknown field", 3),
+        (
+            "map = { procedural = \"clouds\" }",
+            "unknown procedural map",
+            3,
+        ),
+        (
+            "map = { procedural = \"sky\", sun = 1 }",
+            "unknown field",
+            3,
+        ),
         ("map = { procedural = \"sky\", width = 1 }", "between 2", 3),
         ("color = [1, 1, 1]\nscale = -2", "`scale`", 4),
         ("color = [1, 1, 1]\nup = [0, 0, 0]", "`up`", 4),

@@ -3,9 +3,9 @@
 
 mod aabb;
 mod offset;
+pub mod piecewise;
 mod ray;
 mod sphere;
-pub mod piecewise;
 pub mod terminator;
 mod triangle;
 pub mod warp;

@@ -108,10 +108,7 @@ impl PiecewiseConstant2D {
     /// The distribution proportional to `func` (`width * height` non-negative values).
     pub fn new(func: &[f64], width: usize, height: usize) -> Self {
         assert_eq!(func.len(), width * height, "one value per bucket");
-        let conditional: Vec<_> = func
-            .chunks(width)
-            .map(PiecewiseConstant1D::new)
-            .collect();
+        let conditional: Vec<_> = func.chunks(width).map(PiecewiseConstant1D::new).collect();
         let rows: Vec<f64> = conditional.iter().map(|c| c.integral()).collect();
         PiecewiseConstant2D {
             conditional,
@@ -159,7 +156,10 @@ mod tests {
         let mut counts = [0usize; 4];
         for k in 0..n {
             let (x, i) = d.sample((k as f64 + 0.5) / n as f64);
-            assert!((i as f64 / 4.0..(i as f64 + 1.0) / 4.0).contains(&x), "{x} {i}");
+            assert!(
+                (i as f64 / 4.0..(i as f64 + 1.0) / 4.0).contains(&x),
+                "{x} {i}"
+            );
             counts[i] += 1;
         }
         assert_eq!(counts, [1000, 0, 3000, 0]);

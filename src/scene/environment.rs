@@ -154,7 +154,9 @@ impl Environment {
         if !(up.is_finite() && up.length_squared() > 1e-20 && rotate_y_deg.is_finite()) {
             return Err(Error::parameter(
                 "environment",
-                format!("`up` must be a finite non-zero vector and `rotate_y` finite, got {up} and {rotate_y_deg}"),
+                format!(
+                    "`up` must be a finite non-zero vector and `rotate_y` finite, got {up} and {rotate_y_deg}"
+                ),
             ));
         }
         let up = up.normalize();
@@ -303,7 +305,8 @@ mod tests {
             .unwrap();
         for r in 0..h {
             for c in 0..w {
-                let local = uv_to_direction((c as f32 + 0.5) / w as f32, (r as f32 + 0.5) / h as f32);
+                let local =
+                    uv_to_direction((c as f32 + 0.5) / w as f32, (r as f32 + 0.5) / h as f32);
                 assert_eq!(env.texel(local), Some((c, r)));
                 assert_eq!(env.radiance(local), Vec3::splat((r * w + c) as f32));
                 assert_eq!(turned.texel(turned.to_world(local)), Some((c, r)));
@@ -316,10 +319,20 @@ mod tests {
     fn negative_or_nan_texels_are_refused() {
         let mut texels = vec![Vec3::ONE; 8];
         texels[5] = Vec3::new(0.0, -1.0, 0.0);
-        let e = Environment::map(4, 2, texels, "sky.exr").unwrap_err().to_string();
-        assert!(e.contains("sky.exr") && e.contains("column 1, row 1"), "{e}");
+        let e = Environment::map(4, 2, texels, "sky.exr")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("sky.exr") && e.contains("column 1, row 1"),
+            "{e}"
+        );
         assert!(Environment::map(4, 2, vec![Vec3::ONE; 7], "x").is_err());
         assert!(Environment::constant(Vec3::NAN).is_err());
-        assert!(Environment::constant(Vec3::ONE).unwrap().with_scale(-1.0).is_err());
+        assert!(
+            Environment::constant(Vec3::ONE)
+                .unwrap()
+                .with_scale(-1.0)
+                .is_err()
+        );
     }
 }

@@ -22,7 +22,9 @@ pub mod sky;
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
 pub use camera_override::{CameraOverrides, Side, UpAxis, parse_vec3};
 pub use checks::nothing_visible_warning;
-pub use environment::{Environment, EnvironmentSample, MAX_MAP_SIDE, direction_to_uv, uv_to_direction};
+pub use environment::{
+    Environment, EnvironmentSample, MAX_MAP_SIDE, direction_to_uv, uv_to_direction,
+};
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
 pub use motion::MotionSet;

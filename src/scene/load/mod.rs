@@ -8,8 +8,8 @@ mod ply;
 mod toml_environment;
 mod toml_scene;
 
-pub use obj::{ObjMesh, load_obj, load_obj_from_bytes, material_from_mtl};
 pub use environment_map::read_environment_map;
+pub use obj::{ObjMesh, load_obj, load_obj_from_bytes, material_from_mtl};
 pub use ply::{PlyMesh, load_ply, load_ply_from_bytes};
 pub use toml_scene::{load_toml_scene, parse_toml_scene};
 

@@ -93,7 +93,10 @@ pub(super) fn environment(
         Some(s) => env.with_scale(*s.get_ref()).map_err(located(s.span()))?,
         None => env,
     };
-    let up = def.up.as_ref().map_or(Vec3::Y, |u| Vec3::from_array(*u.get_ref()));
+    let up = def
+        .up
+        .as_ref()
+        .map_or(Vec3::Y, |u| Vec3::from_array(*u.get_ref()));
     let rotate = def.rotate_y.as_ref().map_or(0.0, |r| *r.get_ref());
     let span = def
         .up
@@ -132,7 +135,10 @@ fn map(
                 .clone()
                 .try_into()
                 .map_err(|e: toml::de::Error| {
-                    at(m.span(), format!("procedural map: {}", e.message().trim_end()))
+                    at(
+                        m.span(),
+                        format!("procedural map: {}", e.message().trim_end()),
+                    )
                 })?;
             if def.procedural != "sky" {
                 return Err(at(
@@ -143,7 +149,8 @@ fn map(
                     ),
                 ));
             }
-            let p = sky_params(&def).map_err(|msg| at(m.span(), format!("procedural sky: {msg}")))?;
+            let p =
+                sky_params(&def).map_err(|msg| at(m.span(), format!("procedural sky: {msg}")))?;
             let (w, h, texels) = generate(&p);
             Environment::map(w, h, texels, "procedural sky")
         }
@@ -158,20 +165,26 @@ fn sky_params(d: &SkyDef) -> std::result::Result<SkyParams, String> {
     let mut p = SkyParams::default();
     if let Some(w) = d.width {
         if !(2..=MAX_SKY_WIDTH).contains(&w) {
-            return Err(format!("`width` must be between 2 and {MAX_SKY_WIDTH}, got {w}"));
+            return Err(format!(
+                "`width` must be between 2 and {MAX_SKY_WIDTH}, got {w}"
+            ));
         }
         p.width = w as usize;
     }
     if let Some(s) = d.sun_direction {
         let s = Vec3::from_array(s);
         if !(s.is_finite() && s.length_squared() > 1e-20) {
-            return Err(format!("`sun_direction` must be a finite non-zero vector, got {s}"));
+            return Err(format!(
+                "`sun_direction` must be a finite non-zero vector, got {s}"
+            ));
         }
         p.sun_direction = s.normalize();
     }
     if let Some(a) = d.sun_angle {
         if !(a.is_finite() && a > 0.0 && a < 180.0) {
-            return Err(format!("`sun_angle` must be between 0 and 180 degrees, got {a}"));
+            return Err(format!(
+                "`sun_angle` must be between 0 and 180 degrees, got {a}"
+            ));
         }
         p.sun_angle_deg = a;
     }

@@ -381,7 +381,8 @@ impl<'a> Builder<'a> {
             self.b.ambient = cx.color(a, "ambient")?;
         }
         if let Some(e) = &file.environment {
-            let env = super::toml_environment::environment(e.get_ref(), e.span(), cx.path, cx.text)?;
+            let env =
+                super::toml_environment::environment(e.get_ref(), e.span(), cx.path, cx.text)?;
             self.b.environment = Some(std::sync::Arc::new(env));
         }
         if let Some(c) = &file.camera {
