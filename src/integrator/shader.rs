@@ -467,7 +467,7 @@ impl Shader<'_> {
                 n_shading: si.n_shading,
             };
             let index = self.scene.lights.len() as u32;
-            environment_shadow_rays(env, &points, at, &reflectance, |ray, c| {
+            environment_shadow_rays(env, &points, at, reflectance, |ray, c| {
                 shadow(out, ray, c, index)
             });
             out.points = points;
