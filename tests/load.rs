@@ -127,7 +127,7 @@ fn every_shipped_scene_loads() {
         let scene = load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
         assert!(scene.primitive_count() > 0, "{} is empty", path.display());
         assert!(
-            !scene.lights.is_empty() || scene.features.emission,
+            !scene.lights.is_empty() || scene.features.emission || scene.features.environment,
             "{} is unlit",
             path.display()
         );
