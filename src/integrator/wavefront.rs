@@ -35,7 +35,8 @@
 //! stages it shares with the recursive integrator (camera rays, surface interactions,
 //! shading, pixel filter, tiles) in their own files.
 
-use super::camera_rays::{CameraSampler, PixelSamples};
+use super::camera_packets::CameraStaging;
+use super::camera_rays::CameraSampler;
 use super::interaction::SurfaceInteraction;
 use super::pixel_filter::resolve_pixel;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
@@ -122,7 +123,10 @@ struct Sinks {
 
 /// Per-worker queues and scratch, sized by the largest tile seen, reused across tiles.
 struct Workspace {
-    samples: PixelSamples,
+    /// Staging of the lane-parallel camera rays, and the tile's pixels in generation
+    /// order (`(x, y, index)`).
+    staging: CameraStaging,
+    pixels: Vec<(u32, u32, u64)>,
     /// Eye-sample offsets of each generated pixel, in generation order.
     offsets: Vec<(f32, f32)>,
     /// Row-major position in the tile of each generated pixel.
@@ -138,7 +142,8 @@ struct Workspace {
 impl Workspace {
     fn new(p: &Pipeline, scene: &Scene) -> Self {
         Workspace {
-            samples: PixelSamples::default(),
+            staging: CameraStaging::default(),
+            pixels: Vec::new(),
             offsets: Vec::new(),
             order: Vec::new(),
             camera: RayQueue::default(),
@@ -203,26 +208,37 @@ fn render_tile(
     // Camera rays.
     let t = Instant::now();
     let tile_w = tile.x1 - tile.x0;
+    ws.pixels.clear();
     for by in (tile.y0..tile.y1).step_by(BLOCK as usize) {
         for bx in (tile.x0..tile.x1).step_by(BLOCK as usize) {
             for y in by..(by + BLOCK).min(tile.y1) {
                 for x in bx..(bx + BLOCK).min(tile.x1) {
                     let index = y as u64 * opts.width as u64 + x as u64;
-                    let samples = &mut ws.samples;
-                    camera.pixel_samples(opts.seed, index, x, y, samples, &mut sinks.drawn);
+                    ws.pixels.push((x, y, index));
                     ws.order.push((y - tile.y0) * tile_w + (x - tile.x0));
                     sinks.pixel_index.push(index);
-                    ws.offsets.extend_from_slice(&samples.offsets);
-                    for (s, ray) in samples.rays.iter().enumerate() {
-                        let slot = sinks.acc.len() as u32;
-                        let path = plan.first_path() + s as u64;
-                        ws.camera.push(*ray, slot, Vec3::ONE, Vec3::ONE, path);
-                        sinks.acc.push(Vec3::ZERO);
-                    }
                 }
             }
         }
     }
+    // Built lane-parallel (`camera_packets`), the same rays as `pixel_samples`.
+    camera.block_rays(
+        opts.seed,
+        &ws.pixels,
+        &mut ws.staging,
+        &mut ws.offsets,
+        &mut ws.camera.rays,
+        &mut sinks.drawn,
+    );
+    let n = ws.camera.rays.len();
+    let rpp = (plan.eye_rendered() * camera.rays_per_eye()) as usize;
+    let q = &mut ws.camera;
+    q.slot.extend(0..n as u32);
+    q.weight.resize(n, Vec3::ONE);
+    q.throughput.resize(n, Vec3::ONE);
+    q.path
+        .extend((0..n).map(|i| plan.first_path() + (i % rpp) as u64));
+    sinks.acc.resize(n, Vec3::ZERO);
     sinks.rays.camera += ws.camera.rays.len() as u64;
     stages.camera += ms_since(t);
 
