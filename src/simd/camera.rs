@@ -135,11 +135,16 @@ mod tests {
         for _ in 0..200 {
             let mut a = [[0.0f32; 16]; 5];
             for l in 0..L::WIDTH {
-                a[0][l] = rng.next_f32() * 97.0;
-                a[1][l] = rng.next_f32() * 61.0;
-                a[2][l] = 2.0 * rng.next_f32() - 1.0;
-                a[3][l] = 2.0 * rng.next_f32() - 1.0;
-                a[4][l] = rng.next_f32();
+                let draws = [
+                    rng.next_f32() * 97.0,
+                    rng.next_f32() * 61.0,
+                    2.0 * rng.next_f32() - 1.0,
+                    2.0 * rng.next_f32() - 1.0,
+                    rng.next_f32(),
+                ];
+                for (lane, d) in a.iter_mut().zip(draws) {
+                    lane[l] = d;
+                }
             }
             let time = shutter_times(&lf, L::load(&a[4]));
             let lens = effects
