@@ -96,9 +96,9 @@ pub(crate) struct PixelSamples {
     /// Offset of each eye sample inside the pixel (or the filter footprint).
     pub offsets: Vec<(f32, f32)>,
     pub rays: Vec<Ray>,
-    pixel_pos: Vec<(f32, f32)>,
-    lens_pos: Vec<(f32, f32)>,
-    times: Vec<f32>,
+    pub(crate) pixel_pos: Vec<(f32, f32)>,
+    pub(crate) lens_pos: Vec<(f32, f32)>,
+    pub(crate) times: Vec<f32>,
 }
 
 impl CameraSampler {
@@ -192,7 +192,7 @@ impl CameraSampler {
     /// Draws every camera set of the pixel (all `eye` samples) from the pixel's own
     /// stream, for the patterns that are drawn as whole sets. Draw order is fixed:
     /// pixel positions, lens points, shutter times.
-    fn draw_sets(
+    pub(crate) fn draw_sets(
         &self,
         seed: u64,
         index: u64,

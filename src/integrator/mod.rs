@@ -12,6 +12,7 @@
 pub mod adaptive;
 pub mod aov;
 pub mod budget;
+pub mod camera_packets;
 pub mod camera_rays;
 pub(crate) mod environment;
 pub mod interaction;

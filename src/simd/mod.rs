@@ -9,6 +9,7 @@
 //! Masks are lane vectors whose lanes are all-ones or all-zeros, as `wide` returns
 //! from comparisons; [`Lanes::bitmask`] turns one into an integer with bit `i` for lane `i`.
 
+pub mod camera;
 pub mod kernels;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
