@@ -4,7 +4,7 @@
 
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
-use crate::accel::bvh2::BuildNode;
+use crate::accel::sah_build::BuildNode;
 use crate::simd::kernels::TriGroup4;
 use rayon::prelude::*;
 

@@ -5,7 +5,7 @@ use super::packet_bounds::PacketBounds;
 use super::packet_setup::PacketSetup;
 use super::stack::{PACKET_STACK, SINGLE_STACK};
 use super::tree::{Bvh, Bvh4, Bvh8, wide_build_options};
-use crate::accel::bvh2::build_tree;
+use crate::accel::sah_build::build_tree;
 use crate::accel::{Accel, Primitives, Triangles};
 use crate::geometry::{ROBUST_FAR_SCALE, Ray, RayPacket};
 use crate::simd::{Lanes, Packet};

@@ -4,8 +4,8 @@
 use super::collapse::{Collapse, PARALLEL_COLLAPSE_LEVELS};
 use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, Width, is_leaf, leaf_range};
 use super::stack::SINGLE_STACK;
-use crate::accel::bvh2::build_tree;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
+use crate::accel::sah_build::build_tree;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::TriGroup4;
