@@ -8,7 +8,7 @@ use super::tree::{Bvh, Bvh4, Bvh8, wide_build_options};
 use crate::accel::sah_build::build_tree;
 use crate::accel::{Accel, Primitives, Triangles};
 use crate::geometry::{ROBUST_FAR_SCALE, Ray, RayPacket};
-use crate::simd::{Lanes, Packet};
+use crate::simd::Packet;
 use glam::Vec3;
 
 fn soup() -> Triangles {
