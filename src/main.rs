@@ -173,6 +173,23 @@ struct BenchArgs {
     /// OBJ mesh (default: the procedural Bunny-scale mesh of 69,451 triangles).
     #[arg(long)]
     mesh: Option<PathBuf>,
+    /// The procedural mesh (a bumpy sphere) with about this many triangles instead.
+    #[arg(long, conflicts_with = "mesh")]
+    triangles: Option<usize>,
+    /// Run on procedural meshes of 10^3, 10^4, ... triangles up to --sweep-max, one
+    /// table with build time and bytes per triangle per size.
+    #[arg(long, conflicts_with_all = ["mesh", "triangles"])]
+    sweep: bool,
+    /// Largest mesh of --sweep, in triangles.
+    #[arg(long, default_value_t = packet_render::bench::sweep::SWEEP_MAX_TRIANGLES, requires = "sweep")]
+    sweep_max: usize,
+    /// Untimed warm-up before each figure, in ms (at least one pass).
+    #[arg(long, default_value_t = 300.0)]
+    warmup_ms: f64,
+    /// Repeat a figure up to this many more times while the process got less than 98 %
+    /// of its cores (other load), keeping the attempt with the highest share.
+    #[arg(long, default_value_t = 0)]
+    retry_busy: usize,
     /// Tracing modes, comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = packet_render::bench::MODES.iter().map(|s| s.to_string()))]
     modes: Vec<String>,
@@ -521,37 +538,68 @@ fn merge(args: MergeArgs) -> packet_render::Result<()> {
 
 fn bench(args: BenchArgs) -> packet_render::Result<()> {
     use packet_render::bench;
-    let mesh = match &args.mesh {
-        Some(p) => bench::BenchMesh::from_obj(p)?,
-        None => bench::BenchMesh::procedural(bench::DEFAULT_MESH_TRIANGLES),
-    };
     let opts = bench::BenchOptions {
         modes: args.modes,
         threads: args.threads,
         reps: args.reps,
         width: args.width,
         height: args.height,
+        warmup_s: args.warmup_ms * 1e-3,
+        retry_busy: args.retry_busy,
     };
-    if !args.json {
+    let preamble = |what: String| {
         println!(
-            "mesh {}: {} triangles; {}x{}; kernels built for {}, {}-ray packets; {} timed passes, median",
-            mesh.name,
-            mesh.triangles.v0.len(),
+            "{what}; {}x{}; kernels built for {}, {}-ray packets; {} timed passes after {} ms of warm-up, median",
             opts.width,
             opts.height,
             bench::instruction_set(),
             packet_render::simd::PACKET_WIDTH,
-            opts.reps
-        );
-        println!("{}", bench::table_header());
-    }
-    bench::run(&mesh, &opts, |row| {
+            opts.reps,
+            args.warmup_ms
+        )
+    };
+    let print = |row: &bench::BenchRow, table: fn(&bench::BenchRow) -> String| {
         if args.json {
             println!("{}", serde_json::to_string(row).expect("row serialises"));
         } else {
-            println!("{}", bench::table_row(row));
+            println!("{}", table(row));
         }
-    })?;
+    };
+    if args.sweep {
+        let sizes = bench::sweep::sweep_sizes(args.sweep_max)?;
+        if !args.json {
+            preamble(format!(
+                "sweep over the procedural mesh: {} to {} triangles",
+                sizes[0],
+                sizes[sizes.len() - 1]
+            ));
+            println!("{}", bench::sweep_table_header());
+        }
+        bench::sweep::run_sweep(
+            args.sweep_max,
+            &opts,
+            |_| {},
+            |row| print(row, bench::sweep_table_row),
+        )?;
+        return Ok(());
+    }
+    let mesh = match (&args.mesh, args.triangles) {
+        (Some(p), _) => bench::BenchMesh::from_obj(p)?,
+        (None, Some(n)) => {
+            bench::sweep::check_triangles("triangles", n)?;
+            bench::BenchMesh::procedural(n)
+        }
+        (None, None) => bench::BenchMesh::procedural(bench::DEFAULT_MESH_TRIANGLES),
+    };
+    if !args.json {
+        preamble(format!(
+            "mesh {}: {} triangles",
+            mesh.name,
+            mesh.triangles.v0.len()
+        ));
+        println!("{}", bench::table_header());
+    }
+    bench::run(&mesh, &opts, |row| print(row, bench::table_row))?;
     Ok(())
 }
 

@@ -656,3 +656,123 @@ fn ortho_flag_matches_the_toml_orthographic_camera() {
         "perspective looks the same"
     );
 }
+
+#[test]
+fn bench_triangles_runs_the_procedural_mesh_of_that_size_with_cpu_share_and_memory() {
+    let o = run(&[
+        "bench",
+        "--triangles",
+        "3000",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--reps",
+        "2",
+        "--warmup-ms",
+        "0",
+        "--threads",
+        "1",
+        "--modes",
+        "scalar-bvh2,bvh8-packet",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect();
+    assert_eq!(rows.len(), 6, "2 modes x 3 workloads");
+    for r in &rows {
+        // the tessellation's nearest count: within about 2 sqrt(n) above the request
+        let n = r["triangles"].as_u64().unwrap();
+        assert!((3000..3000 + 2 * 55).contains(&n), "{n} triangles");
+        let cpu = r["cpu_util"]
+            .as_f64()
+            .expect("a CPU clock on this platform");
+        // one thread: at most one core's worth (plus clock-read slack), and some
+        assert!(cpu > 0.0 && cpu <= 1.05, "cpu share {cpu}");
+        let (lo, med, hi) = (
+            r["mrays_min"].as_f64().unwrap(),
+            r["mrays_median"].as_f64().unwrap(),
+            r["mrays_max"].as_f64().unwrap(),
+        );
+        assert!(lo > 0.0 && lo <= med && med <= hi, "{lo} {med} {hi}");
+        let (bmin, bmed, bmax) = (
+            r["build_ms_min"].as_f64().unwrap(),
+            r["build_ms"].as_f64().unwrap(),
+            r["build_ms_max"].as_f64().unwrap(),
+        );
+        assert!(
+            bmin > 0.0 && bmin <= bmed && bmed <= bmax,
+            "{bmin} {bmed} {bmax}"
+        );
+        // a BVH holds at least the triangles' 36 bytes of corners each
+        assert!(r["bytes_per_triangle"].as_f64().unwrap() > 36.0, "{r}");
+    }
+    for w in ["primary", "shadow", "diffuse"] {
+        let of: Vec<_> = rows.iter().filter(|r| r["workload"] == w).collect();
+        assert_eq!(of[0]["hits_or_occluded"], of[1]["hits_or_occluded"], "{w}");
+    }
+    assert!(rows[0]["hits_or_occluded"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn bench_sweep_reports_every_power_of_ten_up_to_the_limit() {
+    let o = run(&[
+        "bench",
+        "--sweep",
+        "--sweep-max",
+        "20000",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--reps",
+        "1",
+        "--warmup-ms",
+        "0",
+        "--threads",
+        "1",
+        "--modes",
+        "bvh4-packet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let header = out
+        .lines()
+        .find(|l| l.contains("triangles") && l.contains("bytes/tri") && l.contains("cpu"))
+        .expect("a sweep table header");
+    assert!(header.contains("build ms"), "{header}");
+    // one row per size and workload; sizes 10^3 and 10^4 (10^5 is past the limit)
+    let sizes: Vec<u64> = out
+        .lines()
+        .filter(|l| l.contains("bvh4-packet"))
+        .map(|l| l.split_whitespace().next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(sizes.len(), 6, "{out}");
+    assert!(
+        sizes[..3].iter().all(|&n| (1000..1100).contains(&n)),
+        "{sizes:?}"
+    );
+    assert!(
+        sizes[3..].iter().all(|&n| (10000..10300).contains(&n)),
+        "{sizes:?}"
+    );
+}
+
+#[test]
+fn bench_rejects_bad_sizes_with_the_flag_named() {
+    let o = run(&["bench", "--sweep", "--sweep-max", "500"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("sweep-max"), "{}", stderr(&o));
+    let o = run(&["bench", "--triangles", "0", "--width", "8", "--height", "8"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("triangles"), "{}", stderr(&o));
+    let o = run(&["bench", "--triangles", "100", "--mesh", "x.obj"]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "clap rejects --triangles with --mesh"
+    );
+}

@@ -14,6 +14,7 @@ mod kdtree;
 mod moving;
 mod octree;
 mod primitives;
+mod sah_build;
 pub mod spatial;
 
 pub use bruteforce::BruteForce;

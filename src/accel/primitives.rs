@@ -11,9 +11,6 @@ use glam::Vec3;
 pub trait Primitives: Send + Sync + Sized {
     fn count(&self) -> usize;
     fn bounds(&self, i: usize) -> Aabb;
-    fn centroid(&self, i: usize) -> Vec3 {
-        self.bounds(i).center()
-    }
     /// Closest intersection of primitive `i` inside `(q.tmin, tmax)`.
     fn intersect(&self, i: usize, q: &RayQuery, tmax: f32) -> Option<PrimHit>;
     /// Every intersection of primitive `i` inside `(q.tmin, tmax)`, nearest first, each
@@ -162,10 +159,6 @@ impl Primitives for Spheres {
     fn bounds(&self, i: usize) -> Aabb {
         let r = Vec3::splat(self.radius[i]);
         Aabb::new(self.center[i] - r, self.center[i] + r)
-    }
-
-    fn centroid(&self, i: usize) -> Vec3 {
-        self.center[i]
     }
 
     #[inline]

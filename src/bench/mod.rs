@@ -11,8 +11,10 @@
 
 pub mod compare;
 pub mod converge;
+pub mod cpu_time;
 pub mod lecture;
 pub mod precision;
+pub mod sweep;
 
 use crate::accel::{Accel, AccelKind, Triangles};
 use crate::geometry::{Hit, Ray, RayPacket, orthonormal_basis};
@@ -212,6 +214,8 @@ pub trait TraceMode: Send + Sync {
         self.occluded(&aos[..rays.len], out);
     }
     fn build_ms(&self) -> f64;
+    /// Bytes of the structure traced (nodes and leaves).
+    fn memory_bytes(&self) -> usize;
 }
 
 /// One ray at a time through [`Accel::closest_hit`] / [`Accel::any_hit`].
@@ -237,6 +241,9 @@ impl TraceMode for SingleRay {
 
     fn build_ms(&self) -> f64 {
         self.accel.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.accel.info().memory_bytes
     }
 }
 
@@ -267,6 +274,9 @@ impl TraceMode for Batched {
     }
     fn build_ms(&self) -> f64 {
         self.accel.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.accel.info().memory_bytes
     }
 }
 
@@ -549,25 +559,102 @@ impl Protocol {
         c
     }
 
-    /// Times `reps` passes after one warm-up; returns the checksums and Mrays/s of each pass.
+    /// Times `timing.reps` passes after a warm-up (see [`Timing`]); returns the
+    /// checksums, the Mrays/s of each pass and the CPU share of the timed passes.
     pub fn measure(
         &self,
         mode: &dyn TraceMode,
         workload: Workload,
         primary: Option<&PrimaryHits>,
-        reps: usize,
-    ) -> (Checksums, Vec<f64>) {
+        timing: &Timing,
+    ) -> Measured {
+        let threads = rayon::current_num_threads();
         let mut t = vec![0.0; self.pixels()];
         let mut prim = vec![0; self.pixels()];
-        let mut rays = self.pass(mode, workload, primary, &mut t, &mut prim);
-        let mut rates = Vec::with_capacity(reps);
-        for _ in 0..reps {
-            let start = Instant::now();
-            rays = self.pass(mode, workload, primary, &mut t, &mut prim);
-            rates.push(rays as f64 / start.elapsed().as_secs_f64() / 1e6);
+        let mut best: Option<(Vec<f64>, f64)> = None;
+        let mut rays = 0;
+        let mut attempts = 0;
+        for _ in 0..=timing.retry_busy {
+            attempts += 1;
+            // Warm-up: caches, page faults, the clock ramping up; at least one pass.
+            let warm = Instant::now();
+            loop {
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                if warm.elapsed().as_secs_f64() >= timing.warmup_s {
+                    break;
+                }
+            }
+            let mut secs = Vec::with_capacity(timing.reps);
+            let c0 = cpu_time::process_cpu_seconds();
+            for _ in 0..timing.reps {
+                let start = Instant::now();
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                secs.push(start.elapsed().as_secs_f64());
+            }
+            let cpu = cpu_time::process_cpu_seconds()
+                .zip(c0)
+                .map(|(c1, c0)| c1 - c0);
+            let util = cpu_time::utilisation(cpu, secs.iter().sum(), threads);
+            // NaN (no clock) never retries and never replaces a measured share.
+            if best.as_ref().is_none_or(|b| util > b.1) {
+                best = Some((secs, util));
+            }
+            if best
+                .as_ref()
+                .is_none_or(|b| b.1.is_nan() || b.1 >= BUSY_SHARE)
+            {
+                break;
+            }
         }
-        (Self::checksums(workload, rays, &t, &prim), rates)
+        let (secs, cpu_util) = best.expect("at least one attempt");
+        Measured {
+            checksums: Self::checksums(workload, rays, &t, &prim),
+            rates: secs.iter().map(|s| rays as f64 / s / 1e6).collect(),
+            cpu_util,
+            attempts,
+        }
     }
+}
+
+/// CPU share below which a measurement is repeated with `--retry-busy` (Embree's
+/// harness uses the same).
+pub const BUSY_SHARE: f64 = 0.98;
+
+/// How each figure is timed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Timing {
+    /// Timed passes per figure.
+    pub reps: usize,
+    /// Untimed passes run first until this many seconds have gone by (at least one).
+    pub warmup_s: f64,
+    /// Repeat a figure's warm-up and timed passes up to this many more times while the
+    /// process got less than [`BUSY_SHARE`] of its cores, keeping the attempt with the
+    /// highest share (Embree's harness: `--retry-busy`).
+    pub retry_busy: usize,
+}
+
+impl Timing {
+    /// `reps` timed passes after one warm-up pass, no retries.
+    pub fn passes(reps: usize) -> Self {
+        Timing {
+            reps,
+            warmup_s: 0.0,
+            retry_busy: 0,
+        }
+    }
+}
+
+/// One timed figure.
+#[derive(Clone, Debug)]
+pub struct Measured {
+    pub checksums: Checksums,
+    /// Mrays/s of each timed pass.
+    pub rates: Vec<f64>,
+    /// Process CPU time over the timed passes / (their wall time x threads); NaN where
+    /// there is no CPU clock.
+    pub cpu_util: f64,
+    /// Measurements made (more than one with `retry_busy`).
+    pub attempts: usize,
 }
 
 /// One row of the report: the JSON fields of the issue, plus the instruction set.
@@ -585,6 +672,17 @@ pub struct BenchRow {
     pub mrays_max: f64,
     pub build_ms: f64,
     pub isa: &'static str,
+    /// Triangles of the mesh.
+    pub triangles: usize,
+    /// Process CPU time over the timed passes / (their wall time x threads): near 1.00
+    /// when the figure had its cores to itself (null without a CPU clock).
+    pub cpu_util: f64,
+    /// Measurements made for the figure (more than one with `--retry-busy`).
+    pub attempts: usize,
+    pub build_ms_min: f64,
+    pub build_ms_max: f64,
+    /// Bytes of the traced structure (nodes and leaves) per triangle.
+    pub bytes_per_triangle: f64,
 }
 
 /// Median of a non-empty list.
@@ -619,7 +717,8 @@ mod tests {
     }
 }
 
-/// Runs every workload for one mode at one thread count (inside the caller's pool).
+/// Runs every workload for one mode at one thread count (inside the caller's pool):
+/// `reps` timed passes after one warm-up pass, the build time as given.
 pub fn run_mode(
     protocol: &Protocol,
     mode: &dyn TraceMode,
@@ -627,12 +726,26 @@ pub fn run_mode(
     reps: usize,
     build_ms: f64,
 ) -> Vec<BenchRow> {
+    run_mode_timed(protocol, mode, threads, &Timing::passes(reps), &[build_ms])
+}
+
+/// Runs every workload for one mode at one thread count (inside the caller's pool),
+/// timed as `timing` says; `builds` are the build times measured (ms, at least one).
+pub fn run_mode_timed(
+    protocol: &Protocol,
+    mode: &dyn TraceMode,
+    threads: usize,
+    timing: &Timing,
+    builds: &[f64],
+) -> Vec<BenchRow> {
     let primary = protocol.primary_hits(mode);
+    let triangles = protocol.tris.v0.len();
     Workload::ALL
         .iter()
         .map(|&w| {
             let p = (w != Workload::Primary).then_some(&primary);
-            let (c, rates) = protocol.measure(mode, w, p, reps);
+            let m = protocol.measure(mode, w, p, timing);
+            let c = m.checksums;
             BenchRow {
                 tracer: "packet-render",
                 mode: mode.name().to_string(),
@@ -641,11 +754,17 @@ pub fn run_mode(
                 rays: c.rays,
                 hits_or_occluded: c.hits_or_occluded,
                 sum_t: c.sum_t,
-                mrays_median: median(&rates),
-                mrays_min: rates.iter().copied().fold(f64::INFINITY, f64::min),
-                mrays_max: rates.iter().copied().fold(0.0, f64::max),
-                build_ms,
+                mrays_median: median(&m.rates),
+                mrays_min: m.rates.iter().copied().fold(f64::INFINITY, f64::min),
+                mrays_max: m.rates.iter().copied().fold(0.0, f64::max),
+                build_ms: median(builds),
                 isa: instruction_set(),
+                triangles,
+                cpu_util: m.cpu_util,
+                attempts: m.attempts,
+                build_ms_min: builds.iter().copied().fold(f64::INFINITY, f64::min),
+                build_ms_max: builds.iter().copied().fold(0.0, f64::max),
+                bytes_per_triangle: mode.memory_bytes() as f64 / triangles.max(1) as f64,
             }
         })
         .collect()
@@ -711,6 +830,10 @@ pub struct BenchOptions {
     pub reps: usize,
     pub width: u32,
     pub height: u32,
+    /// Warm-up seconds per figure (see [`Timing`]).
+    pub warmup_s: f64,
+    /// Retries of a figure measured while other load took cores (see [`Timing`]).
+    pub retry_busy: usize,
 }
 
 /// Runs every mode at every thread count. `report` receives each row as it is measured.
@@ -721,6 +844,12 @@ pub fn run(
 ) -> crate::Result<Vec<BenchRow>> {
     if opts.reps < 1 {
         return Err(crate::Error::parameter("reps", "at least 1 timed pass"));
+    }
+    if !(0.0..=600.0).contains(&opts.warmup_s) {
+        return Err(crate::Error::parameter(
+            "warmup-ms",
+            format!("between 0 and 600000 ms, got {}", opts.warmup_s * 1e3),
+        ));
     }
     crate::scene::limits::validate_dimensions(opts.width, opts.height, 1, 0)?;
     for m in &opts.modes {
@@ -756,10 +885,14 @@ pub fn run(
                 times.push(start.elapsed().as_secs_f64() * 1e3);
                 mode = Some(built);
             }
-            let build_ms = median(&times[1..]);
             let mode = mode.expect("built at least once");
-            for row in
-                pool.install(|| run_mode(&protocol, mode.as_ref(), threads, opts.reps, build_ms))
+            let timing = Timing {
+                reps: opts.reps,
+                warmup_s: opts.warmup_s,
+                retry_busy: opts.retry_busy,
+            };
+            for row in pool
+                .install(|| run_mode_timed(&protocol, mode.as_ref(), threads, &timing, &times[1..]))
             {
                 report(&row);
                 rows.push(row);
@@ -772,7 +905,7 @@ pub fn run(
 /// A fixed-width table row for humans.
 pub fn table_header() -> String {
     format!(
-        "{:<12} {:<8} {:>7} {:>9} {:>9} {:>16} {:>9} {:>9} {:>9} {:>9}",
+        "{:<12} {:<8} {:>7} {:>9} {:>9} {:>16} {:>9} {:>9} {:>9} {:>9} {:>5} {:>9}",
         "mode",
         "workload",
         "threads",
@@ -782,13 +915,15 @@ pub fn table_header() -> String {
         "Mrays/s",
         "min",
         "max",
-        "build ms"
+        "build ms",
+        "cpu",
+        "bytes/tri"
     )
 }
 
 pub fn table_row(r: &BenchRow) -> String {
     format!(
-        "{:<12} {:<8} {:>7} {:>9} {:>9} {:>16.6} {:>9.2} {:>9.2} {:>9.2} {:>9.2}",
+        "{:<12} {:<8} {:>7} {:>9} {:>9} {:>16.6} {:>9.2} {:>9.2} {:>9.2} {:>9.2} {:>5.2} {:>9.1}",
         r.mode,
         r.workload,
         r.threads,
@@ -798,6 +933,47 @@ pub fn table_row(r: &BenchRow) -> String {
         r.mrays_median,
         r.mrays_min,
         r.mrays_max,
-        r.build_ms
+        r.build_ms,
+        r.cpu_util,
+        r.bytes_per_triangle
+    )
+}
+
+/// The sweep's table (`bench --sweep`): per size and figure, Mrays/s (median, min,
+/// max), the CPU share of the timed passes, build time (median, min, max) and bytes
+/// per triangle.
+pub fn sweep_table_header() -> String {
+    format!(
+        "{:>10} {:<12} {:<8} {:>7} {:>9} {:>9} {:>9} {:>5} {:>10} {:>10} {:>10} {:>9}",
+        "triangles",
+        "mode",
+        "workload",
+        "threads",
+        "Mrays/s",
+        "min",
+        "max",
+        "cpu",
+        "build ms",
+        "min",
+        "max",
+        "bytes/tri"
+    )
+}
+
+pub fn sweep_table_row(r: &BenchRow) -> String {
+    format!(
+        "{:>10} {:<12} {:<8} {:>7} {:>9.2} {:>9.2} {:>9.2} {:>5.2} {:>10.2} {:>10.2} {:>10.2} {:>9.1}",
+        r.triangles,
+        r.mode,
+        r.workload,
+        r.threads,
+        r.mrays_median,
+        r.mrays_min,
+        r.mrays_max,
+        r.cpu_util,
+        r.build_ms,
+        r.build_ms_min,
+        r.build_ms_max,
+        r.bytes_per_triangle
     )
 }

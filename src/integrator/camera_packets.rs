@@ -226,6 +226,7 @@ mod tests {
                             time,
                             shadow: 1,
                             glossy: 1,
+                            environment: 0,
                             sampler,
                             filter,
                             eye_begin: range.start,

@@ -1,0 +1,78 @@
+//! The N-wide node: children's bounds as lane arrays and packed child references,
+//! and the leaf encoding of a child reference.
+
+use crate::geometry::Aabb;
+use crate::simd::{F4, F8, Lanes};
+use glam::Vec3;
+
+/// A node of an N-wide BVH: the children's bounds as lane arrays and packed child
+/// references.
+///
+/// `planes[0..3]` are `min_x, min_y, min_z` and `planes[3..6]` are `max_x, max_y, max_z`,
+/// each `[f32; N]` with one lane per child, so the near plane of axis `a` for a ray with
+/// a negative direction component is `planes[a + 3]` and no per-ray shuffling is needed.
+/// Unused child slots have empty bounds (+inf..-inf), which no ray can enter.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct BvhNode<const N: usize> {
+    pub planes: [[f32; N]; 6],
+    /// Child references: an interior node's index, or [`LEAF`] | count << 27 | first.
+    pub children: [u32; N],
+}
+
+/// A 4-wide node: two cache lines.
+pub type Bvh4Node = BvhNode<4>;
+/// An 8-wide node: 224 bytes of bounds and references, padded to four cache lines.
+pub type Bvh8Node = BvhNode<8>;
+
+const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
+const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 64);
+const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
+const _: () = assert!(std::mem::align_of::<Bvh8Node>() == 64);
+
+/// The node widths there are kernels for, and the lane type of their slab test.
+pub trait NodeWidth {
+    /// N lanes: one per child.
+    type L: Lanes;
+}
+
+/// Marker for node width `N`.
+pub struct Width<const N: usize>;
+
+impl NodeWidth for Width<4> {
+    type L = F4;
+}
+
+impl NodeWidth for Width<8> {
+    type L = F8;
+}
+
+/// Leaf flag of a child reference. A leaf's `first` (27 bits) indexes triangle groups
+/// (triangle meshes) or primitives (other kinds); `count` (4 bits) is how many.
+pub const LEAF: u32 = 1 << 31;
+pub(super) const COUNT_SHIFT: u32 = 27;
+pub(super) const FIRST_MASK: u32 = (1 << COUNT_SHIFT) - 1;
+/// An unused child slot: a leaf with nothing in it (and empty bounds).
+pub const EMPTY_CHILD: u32 = LEAF;
+
+#[inline(always)]
+pub(super) fn is_leaf(r: u32) -> bool {
+    r & LEAF != 0
+}
+
+#[inline(always)]
+pub(super) fn leaf_range(r: u32) -> std::ops::Range<usize> {
+    let first = (r & FIRST_MASK) as usize;
+    let count = ((r & !LEAF) >> COUNT_SHIFT) as usize;
+    first..first + count
+}
+
+impl<const N: usize> BvhNode<N> {
+    /// Bounds of child slot `c`.
+    pub fn child_bounds(&self, c: usize) -> Aabb {
+        Aabb::new(
+            Vec3::new(self.planes[0][c], self.planes[1][c], self.planes[2][c]),
+            Vec3::new(self.planes[3][c], self.planes[4][c], self.planes[5][c]),
+        )
+    }
+}

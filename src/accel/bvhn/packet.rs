@@ -1,0 +1,363 @@
+//! Packet (hybrid) traversal: closest hit and occlusion of a packet group, with the
+//! ray-by-ray finish of a subtree when few lanes stay active.
+
+use super::node::{NodeWidth, Width, is_leaf, leaf_range};
+use super::packet_bounds::{PACKET_BOUNDS_MIN_NODES, PacketBounds};
+use super::packet_setup::{PacketRays, PacketSetup, for_each_bit, lane_query};
+use super::stack::{PACKET_STACK, Stack};
+use super::tree::{Bvh, Leaves};
+use crate::accel::Primitives;
+use crate::geometry::{Hit, LaneRays, PrimHit, ROBUST_FAR_SCALE, RayQuery, intersect_triangle};
+use crate::simd::Lanes;
+use crate::simd::kernels::triangle_packet;
+use glam::Vec3;
+
+/// Rays a packet part keeps traversing together; with fewer active rays it finishes the
+/// subtree ray by ray (measured: see README, "Packet threshold").
+pub const PACKET_MIN_ACTIVE: u32 = 3;
+
+/// Per-lane answers of a packet.
+struct PacketHits<L: Lanes> {
+    t: L::Array,
+    u: L::Array,
+    v: L::Array,
+    prim: [u32; 16],
+    hit: u32,
+}
+
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
+    /// Traces `rays` (exactly `L::WIDTH`) as packets: lanes are grouped by direction
+    /// octant and dominant axis, each group traversed together; a packet whose rays fall
+    /// into more than two groups is incoherent and goes ray by ray instead, as do all
+    /// packets of a tree too deep for the packet stack.
+    pub(super) fn packet_closest<L: Lanes, R: LaneRays + ?Sized>(
+        &self,
+        rays: &R,
+        out: &mut [Option<Hit>],
+    ) {
+        let setup = PacketSetup::<L>::new(rays);
+        out[..rays.lane_count()].fill(None);
+        if !setup.coherent() || self.stack_need >= PACKET_STACK {
+            for_each_bit(setup.valid, |i| {
+                let q = lane_query(rays, i);
+                out[i] = self.closest_from(&q, self.root, q.tmax);
+            });
+            return;
+        }
+        for g in 0..setup.groups {
+            let p = setup.group(g);
+            let mask = setup.group_mask[g];
+            let hits = if setup.shared_origin {
+                self.packet_closest_group::<L, R, true>(&p, rays, mask)
+            } else {
+                self.packet_closest_group::<L, R, false>(&p, rays, mask)
+            };
+            for_each_bit(hits.hit, |i| {
+                out[i] = Some(Hit {
+                    t: hits.t.as_ref()[i],
+                    prim: hits.prim[i],
+                    u: hits.u.as_ref()[i],
+                    v: hits.v.as_ref()[i],
+                })
+            });
+        }
+    }
+
+    fn packet_closest_group<L: Lanes, R: LaneRays + ?Sized, const SHARED: bool>(
+        &self,
+        p: &PacketRays<L>,
+        rays: &R,
+        mask: u32,
+    ) -> PacketHits<L> {
+        let mut tmax = p.tmax;
+        let mut res = PacketHits::<L> {
+            t: L::splat(0.0).to_array(),
+            u: L::splat(0.0).to_array(),
+            v: L::splat(0.0).to_array(),
+            prim: [u32::MAX; 16],
+            hit: 0,
+        };
+        let mut tu = L::splat(0.0);
+        let mut tv = L::splat(0.0);
+        let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
+        let mut cur = self.root;
+        let mut cur_enter = p.tmin;
+        let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
+            p,
+            mask,
+            tmax,
+            SHARED,
+            self.nodes.len() >= PACKET_BOUNDS_MIN_NODES,
+        );
+        loop {
+            // Scaled once per step: entries are compared with it (see `Aabb::intersect`).
+            let tcull = tmax * L::splat(ROBUST_FAR_SCALE);
+            let active = mask & cur_enter.le(tcull).bitmask();
+            if active == 0 {
+                // culled: every lane has a closer hit than this subtree's entry
+            } else if active.count_ones() < PACKET_MIN_ACTIVE {
+                // Too few rays left to share the work: finish the subtree ray by ray.
+                let tm = tmax.to_array();
+                let mut m = active;
+                let mut new_t = tmax.to_array();
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    let q = &lane_query(rays, i);
+                    if let Some(h) = self.closest_from(q, cur, tm.as_ref()[i]) {
+                        new_t.as_mut()[i] = h.t;
+                        res.prim[i] = h.prim;
+                        res.u.as_mut()[i] = h.u;
+                        res.v.as_mut()[i] = h.v;
+                        res.hit |= 1 << i;
+                        let sel = L::mask_from_bits(1 << i);
+                        tu = L::select(sel, L::splat(h.u), tu);
+                        tv = L::select(sel, L::splat(h.v), tv);
+                    }
+                    m &= m - 1;
+                }
+                tmax = L::from_array(new_t);
+            } else if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let mut enters = [L::splat(0.0); N];
+                let mut order = [(0usize, 0f32); N];
+                let mut n = 0;
+                let rep = active.trailing_zeros() as usize;
+                let mut cand = bounds.candidates(node);
+                while cand != 0 {
+                    let c = cand.trailing_zeros() as usize;
+                    cand &= cand - 1;
+                    let (enter, bits) = p.child_test::<SHARED, N>(node, c, tcull);
+                    if bits & active != 0 {
+                        enters[c] = enter;
+                        // insertion sort, far to near, by the representative lane's entry
+                        let key = enter.to_array().as_ref()[rep];
+                        let mut j = n;
+                        while j > 0 && order[j - 1].1 < key {
+                            order[j] = order[j - 1];
+                            j -= 1;
+                        }
+                        order[j] = (c, key);
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    for &(c, _) in &order[..n - 1] {
+                        stack.push((node.children[c], enters[c]));
+                    }
+                    let c = order[n - 1].0;
+                    cur = node.children[c];
+                    cur_enter = enters[c];
+                    continue;
+                }
+            } else if let Leaves::Scalar { prims, ids } = &self.leaves {
+                for k in leaf_range(cur) {
+                    let (t, u, v, bits) = prims.intersect_lanes(k, &p.lanes, tmax, active, rays);
+                    if bits != 0 {
+                        let sel = L::mask_from_bits(bits);
+                        tmax = L::select(sel, t, tmax);
+                        tu = L::select(sel, u, tu);
+                        tv = L::select(sel, v, tv);
+                        res.hit |= bits;
+                        for_each_bit(bits, |i| res.prim[i] = ids[k]);
+                    }
+                }
+            } else if let Leaves::Triangles(groups) = &self.leaves {
+                for g in &groups[leaf_range(cur)] {
+                    for lane in 0..4 {
+                        if g.ids[lane] == u32::MAX {
+                            continue;
+                        }
+                        let corners = g.corners(lane);
+                        let (t, u, v, bits, edge) =
+                            triangle_packet::<L, SHARED>(&p.shear, &corners, tmax, active);
+                        let mut bits = bits;
+                        let (mut t, mut u, mut v) = (t, u, v);
+                        if edge != 0 {
+                            // exactly-zero edge functions: the scalar test with its f64 fallback
+                            let (mut ta, mut ua, mut va) =
+                                (t.to_array(), u.to_array(), v.to_array());
+                            let tm = tmax.to_array();
+                            edge_lanes_scalar(
+                                rays,
+                                &corners,
+                                edge,
+                                |i, _| tm.as_ref()[i],
+                                |i, h| {
+                                    ta.as_mut()[i] = h.t;
+                                    ua.as_mut()[i] = h.u;
+                                    va.as_mut()[i] = h.v;
+                                    bits |= 1 << i;
+                                },
+                            );
+                            (t, u, v) = (L::from_array(ta), L::from_array(ua), L::from_array(va));
+                        }
+                        if bits != 0 {
+                            let sel = L::mask_from_bits(bits);
+                            tmax = L::select(sel, t, tmax);
+                            tu = L::select(sel, u, tu);
+                            tv = L::select(sel, v, tv);
+                            res.hit |= bits;
+                            let mut m = bits;
+                            while m != 0 {
+                                res.prim[m.trailing_zeros() as usize] = g.ids[lane];
+                                m &= m - 1;
+                            }
+                        }
+                    }
+                }
+            }
+            match stack.pop() {
+                Some((r, e)) => {
+                    cur = r;
+                    cur_enter = e;
+                }
+                None => break,
+            }
+        }
+        res.t = tmax.to_array();
+        res.u = tu.to_array();
+        res.v = tv.to_array();
+        res
+    }
+
+    pub(super) fn packet_any<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R, out: &mut [bool]) {
+        let setup = PacketSetup::<L>::new(rays);
+        out[..rays.lane_count()].fill(false);
+        if !setup.coherent() || self.stack_need >= PACKET_STACK {
+            for_each_bit(setup.valid, |i| {
+                out[i] = self.any_from(&lane_query(rays, i), self.root)
+            });
+            return;
+        }
+        for g in 0..setup.groups {
+            let p = setup.group(g);
+            let mask = setup.group_mask[g];
+            let occluded = if setup.shared_origin {
+                self.packet_any_group::<L, R, true>(&p, rays, mask)
+            } else {
+                self.packet_any_group::<L, R, false>(&p, rays, mask)
+            };
+            for_each_bit(occluded, |i| out[i] = true);
+        }
+    }
+
+    /// Bits of the lanes in `mask` that hit something within their interval.
+    fn packet_any_group<L: Lanes, R: LaneRays + ?Sized, const SHARED: bool>(
+        &self,
+        p: &PacketRays<L>,
+        rays: &R,
+        mask: u32,
+    ) -> u32 {
+        let mut occluded = 0u32;
+        let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
+        let mut cur = self.root;
+        let mut cur_enter = p.tmin;
+        let tcull = p.tmax * L::splat(ROBUST_FAR_SCALE);
+        let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
+            p,
+            mask,
+            p.tmax,
+            SHARED,
+            self.nodes.len() >= PACKET_BOUNDS_MIN_NODES,
+        );
+        loop {
+            let active = mask & !occluded & cur_enter.le(tcull).bitmask();
+            if active == 0 {
+            } else if active.count_ones() < PACKET_MIN_ACTIVE {
+                let mut m = active;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    let q = &lane_query(rays, i);
+                    if self.any_from(q, cur) {
+                        occluded |= 1 << i;
+                    }
+                    m &= m - 1;
+                }
+            } else if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let mut first = None;
+                let mut cand = bounds.candidates(node);
+                while cand != 0 {
+                    let c = cand.trailing_zeros() as usize;
+                    cand &= cand - 1;
+                    let (enter, bits) = p.child_test::<SHARED, N>(node, c, tcull);
+                    if bits & active != 0 {
+                        match first {
+                            None => first = Some((node.children[c], enter)),
+                            Some(_) => stack.push((node.children[c], enter)),
+                        }
+                    }
+                }
+                if let Some((r, e)) = first {
+                    cur = r;
+                    cur_enter = e;
+                    continue;
+                }
+            } else if let Leaves::Scalar { prims, .. } = &self.leaves {
+                for k in leaf_range(cur) {
+                    let live = active & !occluded;
+                    occluded |= prims.intersect_lanes(k, &p.lanes, p.tmax, live, rays).3;
+                    if active & !occluded == 0 {
+                        break;
+                    }
+                }
+            } else if let Leaves::Triangles(groups) = &self.leaves {
+                'groups: for g in &groups[leaf_range(cur)] {
+                    for lane in 0..4 {
+                        if g.ids[lane] == u32::MAX {
+                            continue;
+                        }
+                        let live = active & !occluded;
+                        let corners = g.corners(lane);
+                        let (_, _, _, bits, edge) =
+                            triangle_packet::<L, SHARED>(&p.shear, &corners, p.tmax, live);
+                        occluded |= bits;
+                        edge_lanes_scalar(
+                            rays,
+                            &corners,
+                            edge,
+                            |_, q| q.tmax,
+                            |i, _| occluded |= 1 << i,
+                        );
+                        if active & !occluded == 0 {
+                            break 'groups;
+                        }
+                    }
+                }
+            }
+            if mask & !occluded == 0 {
+                return occluded;
+            }
+            match stack.pop() {
+                Some((r, e)) => {
+                    cur = r;
+                    cur_enter = e;
+                }
+                None => return occluded,
+            }
+        }
+    }
+}
+
+/// The packet triangle test's fallback, shared by the closest-hit and occlusion
+/// kernels: each lane of `edge` (an edge function exactly zero, which the lane test
+/// cannot decide) is retested with the scalar watertight test and its f64 fallback,
+/// within `(tmin, tmax(i, query))`; `hit(i, h)` is called for each lane that hits.
+#[inline(always)]
+fn edge_lanes_scalar<R: LaneRays + ?Sized>(
+    rays: &R,
+    corners: &[Vec3; 3],
+    edge: u32,
+    tmax: impl Fn(usize, &RayQuery) -> f32,
+    mut hit: impl FnMut(usize, PrimHit),
+) {
+    for_each_bit(edge, |i| {
+        let q = &lane_query(rays, i);
+        if let Some(h) = intersect_triangle(q, corners[0], corners[1], corners[2], tmax(i, q)) {
+            hit(i, h);
+        }
+    });
+}

@@ -1,0 +1,226 @@
+//! Packet setup: lanes loaded, validity, and the split by direction octant and
+//! dominant axis into groups that share slab planes and watertight shear; the
+//! per-lane child slab test.
+
+use super::node::BvhNode;
+use crate::geometry::{LaneRays, ROBUST_FAR_SCALE, RayQuery};
+use crate::simd::Lanes;
+use crate::simd::kernels::{PacketShear, RayLanes};
+
+/// Packet traversal over lanes of type `L`.
+pub(super) struct PacketRays<L: Lanes> {
+    /// Origins, directions and `tmin` as lanes, for scalar-leaf primitives' lane tests.
+    pub(super) lanes: RayLanes<L>,
+    pub(super) o: [L; 3],
+    pub(super) inv: [L; 3],
+    pub(super) inv_far: [L; 3],
+    pub(super) tmin: L,
+    pub(super) tmax: L,
+    pub(super) near: [usize; 3],
+    pub(super) far: [usize; 3],
+    pub(super) shear: PacketShear<L>,
+}
+
+impl<L: Lanes> PacketRays<L> {
+    /// Slab test of child `c` for every lane: entry distances and hit bits. `tcull` is
+    /// the closest hit so far, already scaled by `ROBUST_FAR_SCALE`.
+    #[inline(always)]
+    pub(super) fn child_test<const SHARED: bool, const N: usize>(
+        &self,
+        node: &BvhNode<N>,
+        c: usize,
+        tcull: L,
+    ) -> (L, u32) {
+        let p = &node.planes;
+        let o = &self.shear.shared_origin;
+        // With a shared origin, `plane - o` is one scalar per plane, broadcast: the same
+        // value every lane would compute.
+        let rel = |plane: usize, a: usize| {
+            if SHARED {
+                L::splat(p[plane][c] - o[a])
+            } else {
+                L::splat(p[plane][c]) - self.o[a]
+            }
+        };
+        let d = |plane: usize, a: usize| rel(plane, a) * self.inv[a];
+        let f = |plane: usize, a: usize| rel(plane, a) * self.inv_far[a];
+        let enter =
+            d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
+        let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tcull)));
+        (enter, enter.le(exit).bitmask())
+    }
+}
+
+/// The query of valid lane `i` of a packet (built in registers for a `RayPacket`: a
+/// `Ray` written to memory field by field and read back with vector loads right away
+/// stalls on store forwarding).
+#[inline(always)]
+pub(super) fn lane_query<R: LaneRays + ?Sized>(rays: &R, i: usize) -> RayQuery {
+    rays.lane_query(i)
+        .expect("packet setup passes valid lanes only")
+}
+
+/// Calls `f` with the index of every set bit.
+#[inline(always)]
+pub(super) fn for_each_bit(mut bits: u32, mut f: impl FnMut(usize)) {
+    while bits != 0 {
+        f(bits.trailing_zeros() as usize);
+        bits &= bits - 1;
+    }
+}
+
+/// A packet loaded into lanes, its valid lanes, and its lane groups of equal direction
+/// octant and dominant axis (at most three; more means incoherent). Validity, reciprocal
+/// and dominant axis are computed lane-parallel with the same operations as
+/// `Ray::is_valid` and `RayQuery::new`, so every lane agrees with the scalar path.
+pub(super) struct PacketSetup<L: Lanes> {
+    pub(super) o: [L; 3],
+    pub(super) d: [L; 3],
+    pub(super) inv: [L; 3],
+    pub(super) tmin: L,
+    pub(super) tmax: L,
+    pub(super) valid: u32,
+    /// Every valid lane starts at the first valid lane's origin (camera rays).
+    pub(super) shared_origin: bool,
+    pub(super) origin0: [f32; 3],
+    pub(super) groups: usize,
+    pub(super) group_mask: [u32; 3],
+    /// (octant sign bits, kz) per group.
+    pub(super) group_key: [(u32, usize); 3],
+}
+
+impl<L: Lanes> PacketSetup<L> {
+    #[inline(always)]
+    pub(super) fn new<R: LaneRays + ?Sized>(rays: &R) -> Self {
+        // Lanes past the count may hold anything: they are masked off from `valid` below.
+        let [ox, oy, oz, dx, dy, dz, tmin, tmax] = rays.load_lanes::<L>();
+        let (o, d) = ([ox, oy, oz], [dx, dy, dz]);
+        let zero = L::splat(0.0);
+        let finite = o[0].is_finite()
+            & o[1].is_finite()
+            & o[2].is_finite()
+            & d[0].is_finite()
+            & d[1].is_finite()
+            & d[2].is_finite();
+        let nonzero = !(d[0].eq(zero) & d[1].eq(zero) & d[2].eq(zero)).bitmask();
+        // tmin <= tmax is false for NaN in either, matching `Ray::is_valid`.
+        let lanes = if L::WIDTH == 32 {
+            u32::MAX
+        } else {
+            (1u32 << L::WIDTH) - 1
+        };
+        let valid = finite.bitmask()
+            & nonzero
+            & tmin.le(tmax).bitmask()
+            & lanes
+            & ((1u64 << rays.lane_count().min(L::WIDTH)) - 1) as u32;
+        let inv = [
+            L::splat(1.0) / d[0],
+            L::splat(1.0) / d[1],
+            L::splat(1.0) / d[2],
+        ];
+
+        // Dominant axis as in `RayQuery::new`: x if |x| >= |y| and |x| >= |z|, else y if |y| >= |z|, else z.
+        let abs = |v: L| L::select(v.lt(zero), zero - v, v);
+        let (ax, ay, az) = (abs(d[0]), abs(d[1]), abs(d[2]));
+        let is_x = (ay.le(ax) & az.le(ax)).bitmask();
+        let is_y = !is_x & az.le(ay).bitmask();
+        let signs = [d[0].sign_bits(), d[1].sign_bits(), d[2].sign_bits()];
+
+        let (shared_origin, origin0) = match valid {
+            0 => (false, [0.0; 3]),
+            v => {
+                let i0 = v.trailing_zeros() as usize;
+                let r0 = rays.lane_origin(i0);
+                let same = |k: usize| o[k].eq(L::splat(r0[k])).bitmask();
+                let same_bits = same(0) & same(1) & same(2);
+                (valid & !same_bits == 0, r0)
+            }
+        };
+        let mut s = PacketSetup {
+            o,
+            d,
+            inv,
+            tmin,
+            tmax,
+            valid,
+            shared_origin,
+            origin0,
+            groups: 0,
+            group_mask: [0; 3],
+            group_key: [(0, 0); 3],
+        };
+        let mut rest = valid;
+        while rest != 0 {
+            let i = rest.trailing_zeros();
+            let octant = (signs[0] >> i & 1) | (signs[1] >> i & 1) << 1 | (signs[2] >> i & 1) << 2;
+            let kz = if is_x >> i & 1 == 1 {
+                0
+            } else if is_y >> i & 1 == 1 {
+                1
+            } else {
+                2
+            };
+            let same_octant = !(signs[0] ^ 0u32.wrapping_sub(octant & 1))
+                & !(signs[1] ^ 0u32.wrapping_sub(octant >> 1 & 1))
+                & !(signs[2] ^ 0u32.wrapping_sub(octant >> 2 & 1));
+            let same_axis = match kz {
+                0 => is_x,
+                1 => is_y,
+                _ => !is_x & !is_y,
+            };
+            let members = rest & same_octant & same_axis;
+            if s.groups == 3 {
+                s.groups = 4;
+                break;
+            }
+            s.group_mask[s.groups] = members;
+            s.group_key[s.groups] = (octant, kz);
+            s.groups += 1;
+            rest &= !members;
+        }
+        s
+    }
+
+    pub(super) fn coherent(&self) -> bool {
+        self.groups <= 2
+    }
+
+    /// The traversal state of group `g`: its planes and watertight shear.
+    #[inline(always)]
+    pub(super) fn group(&self, g: usize) -> PacketRays<L> {
+        let (octant, kz) = self.group_key[g];
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if octant >> kz & 1 == 1 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = L::splat(1.0) / self.d[kz];
+        let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
+        PacketRays {
+            lanes: RayLanes {
+                o: self.o,
+                d: self.d,
+                tmin: self.tmin,
+            },
+            o: self.o,
+            inv: self.inv,
+            inv_far: self.inv.map(|x| x * L::splat(ROBUST_FAR_SCALE)),
+            tmin: self.tmin,
+            tmax: self.tmax,
+            near,
+            far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
+            shear: PacketShear {
+                o: self.o,
+                shared_origin: self.origin0,
+                kx,
+                ky,
+                kz,
+                sx: self.d[kx] * sz,
+                sy: self.d[ky] * sz,
+                sz,
+                tmin: self.tmin,
+            },
+        }
+    }
+}

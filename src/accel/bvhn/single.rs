@@ -1,0 +1,278 @@
+//! Single-ray traversal: closest hit, any hit and the filtered query, one N-wide slab
+//! test per node.
+
+use super::node::{BvhNode, NodeWidth, Width, is_leaf, leaf_range};
+use super::stack::{SINGLE_STACK, Stack};
+use super::tree::{Bvh, Leaves};
+use crate::accel::Primitives;
+use crate::accel::filter::{FilterSink, triangle_candidates};
+use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
+use crate::simd::Lanes;
+use crate::simd::kernels::{triangle4_any, triangle4_closest};
+
+/// A ray prepared for N-wide node tests: splatted origin and reciprocal direction, and
+/// the plane indices its direction signs select.
+struct NodeRay<L: Lanes> {
+    o: [L; 3],
+    inv: [L; 3],
+    /// `inv * (1 + 2 gamma(3))`: Ize's conservative far-plane scale folded into the
+    /// reciprocal once per ray instead of once per node.
+    inv_far: [L; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+    tmin: L,
+}
+
+impl<L: Lanes> NodeRay<L> {
+    #[inline(always)]
+    fn new(q: &RayQuery) -> Self {
+        let near = [0, 1, 2].map(|a| {
+            if q.inv_dir[a].is_sign_negative() {
+                a + 3
+            } else {
+                a
+            }
+        });
+        NodeRay {
+            o: [0, 1, 2].map(|a| L::splat(q.origin[a])),
+            inv: [0, 1, 2].map(|a| L::splat(q.inv_dir[a])),
+            inv_far: [0, 1, 2].map(|a| L::splat(q.inv_dir[a] * ROBUST_FAR_SCALE)),
+            near,
+            far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
+            tmin: L::splat(q.tmin),
+        }
+    }
+
+    /// Slab test against a node's children: entry distances and the bits of the
+    /// children entered within `[tmin, tmax]`. The same arithmetic as `Aabb::intersect`.
+    #[inline(always)]
+    fn test<const N: usize>(&self, node: &BvhNode<N>, tmax: f32) -> (L, u32) {
+        let p = &node.planes;
+        let d = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv[a];
+        let f = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv_far[a];
+        let enter =
+            d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
+        let exit = f(self.far[0], 0).minps(
+            f(self.far[1], 1).minps(f(self.far[2], 2).minps(L::splat(tmax * ROBUST_FAR_SCALE))),
+        );
+        (enter, enter.le(exit).bitmask())
+    }
+}
+
+/// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
+/// One child: no stack traffic; two: one comparison; more: all are pushed and the
+/// pushed run is insertion-sorted in place, far to near, so no scratch array is filled.
+#[inline(always)]
+fn order_children<L: Lanes, const N: usize>(
+    node: &BvhNode<N>,
+    enter: L,
+    mask: u32,
+    stack: &mut Stack<(u32, f32), SINGLE_STACK>,
+) -> u32 {
+    let i0 = mask.trailing_zeros() as usize;
+    let rest = mask & (mask - 1);
+    if rest == 0 {
+        return node.children[i0];
+    }
+    let t = enter.to_array();
+    let t = t.as_ref();
+    let i1 = rest.trailing_zeros() as usize;
+    let (a, b) = ((node.children[i0], t[i0]), (node.children[i1], t[i1]));
+    let mut rest = rest & (rest - 1);
+    if rest == 0 {
+        let (near, far) = if b.1 < a.1 { (b, a) } else { (a, b) };
+        stack.push(far);
+        return near.0;
+    }
+    let base = stack.len;
+    stack.push(a);
+    stack.push(b);
+    while rest != 0 {
+        let i = rest.trailing_zeros() as usize;
+        stack.push((node.children[i], t[i]));
+        rest &= rest - 1;
+    }
+    stack.sort_top_far_to_near(base);
+    stack.pop().expect("three or more entries were pushed").0
+}
+
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
+    /// Closest hit of one ray in the subtree `start`, with interval `(q.tmin, tmax)`.
+    #[inline]
+    pub(super) fn closest_from(&self, q: &RayQuery, start: u32, mut tmax: f32) -> Option<Hit> {
+        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+        let mut best = None;
+        let mut stack = Stack::new();
+        let mut cur = start;
+        loop {
+            if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let (enter, mask) = ray.test(node, tmax);
+                if mask != 0 {
+                    cur = order_children(node, enter, mask, &mut stack);
+                    continue;
+                }
+            } else if let Some(h) = self.leaf_closest(q, cur, tmax) {
+                tmax = h.t;
+                best = Some(h);
+            }
+            loop {
+                let Some((r, d)) = stack.pop() else {
+                    return best;
+                };
+                if d <= tmax * ROBUST_FAR_SCALE {
+                    cur = r;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
+    #[inline]
+    pub(super) fn any_from(&self, q: &RayQuery, start: u32) -> bool {
+        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+        let mut stack: Stack<u32, SINGLE_STACK> = Stack::new();
+        let mut cur = start;
+        loop {
+            if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let (_, mask) = ray.test(node, q.tmax);
+                if mask != 0 {
+                    let mut m = mask;
+                    cur = node.children[m.trailing_zeros() as usize];
+                    m &= m - 1;
+                    while m != 0 {
+                        stack.push(node.children[m.trailing_zeros() as usize]);
+                        m &= m - 1;
+                    }
+                    continue;
+                }
+            } else if self.leaf_any(q, cur) {
+                return true;
+            }
+            match stack.pop() {
+                Some(r) => cur = r,
+                None => return false,
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn leaf_closest(&self, q: &RayQuery, r: u32, mut tmax: f32) -> Option<Hit> {
+        let mut best = None;
+        match &self.leaves {
+            Leaves::Triangles(groups) => {
+                for g in &groups[leaf_range(r)] {
+                    if let Some((lane, h)) = triangle4_closest(q, g, tmax) {
+                        tmax = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            prim: g.ids[lane],
+                            u: h.u,
+                            v: h.v,
+                        });
+                    }
+                }
+            }
+            Leaves::Scalar { prims, ids } => {
+                for k in leaf_range(r) {
+                    if let Some(h) = prims.intersect(k, q, tmax) {
+                        tmax = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            prim: ids[k],
+                            u: h.u,
+                            v: h.v,
+                        });
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    #[inline(always)]
+    fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
+        match &self.leaves {
+            Leaves::Triangles(groups) => groups[leaf_range(r)]
+                .iter()
+                .any(|g| triangle4_any(q, g, q.tmax)),
+            Leaves::Scalar { prims, .. } => {
+                leaf_range(r).any(|k| prims.intersect(k, q, q.tmax).is_some())
+            }
+        }
+    }
+
+    /// The filtered query ([`super::filter`]): the single-ray traversal of
+    /// `closest_from`, nearer children first, with the interval ended by the nearest
+    /// accepted candidate only. Triangle groups are tested lane by lane with the scalar
+    /// watertight test (the SIMD kernel is its bit-identical twin but reports only the
+    /// nearest lane). Each primitive is in one leaf, so no deduplication is needed.
+    pub(super) fn filtered_from(&self, q: &RayQuery, sink: &mut FilterSink) {
+        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+        let mut stack = Stack::new();
+        let mut cur = self.root;
+        loop {
+            if !is_leaf(cur) {
+                let node = &self.nodes[cur as usize];
+                let (enter, mask) = ray.test(node, sink.tmax);
+                if mask != 0 {
+                    cur = order_children(node, enter, mask, &mut stack);
+                    continue;
+                }
+            } else if self.leaf_filtered(q, cur, sink) {
+                return;
+            }
+            loop {
+                let Some((r, d)) = stack.pop() else {
+                    return;
+                };
+                if d <= sink.tmax * ROBUST_FAR_SCALE {
+                    cur = r;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Offers the candidates of leaf `r`; true when the traversal is finished.
+    fn leaf_filtered(&self, q: &RayQuery, r: u32, sink: &mut FilterSink) -> bool {
+        match &self.leaves {
+            Leaves::Triangles(groups) => {
+                for g in &groups[leaf_range(r)] {
+                    for lane in (0..4).filter(|&l| g.ids[l] != u32::MAX) {
+                        let corners = g.corners(lane);
+                        if sink.test_with(g.ids[lane], |tmax, f| {
+                            triangle_candidates(q, corners, tmax, f)
+                        }) {
+                            return true;
+                        }
+                    }
+                }
+            }
+            Leaves::Scalar { prims, ids } => {
+                for k in leaf_range(r) {
+                    if sink.test(prims, k, ids[k], q) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// Closest hit of one ray (the single-ray SIMD kernel).
+    pub fn closest_single(&self, ray: &Ray) -> Option<Hit> {
+        let q = RayQuery::new(ray)?;
+        self.closest_from(&q, self.root, q.tmax)
+    }
+
+    /// Occlusion of one ray (the single-ray SIMD kernel).
+    pub fn any_single(&self, ray: &Ray) -> bool {
+        RayQuery::new(ray).is_some_and(|q| self.any_from(&q, self.root))
+    }
+}

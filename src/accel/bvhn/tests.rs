@@ -1,0 +1,197 @@
+//! Unit tests of the N-wide BVH internals (stack need, parallel collapse, packet bounds).
+use super::collapse::Collapse;
+use super::node::{EMPTY_CHILD, NodeWidth, Width};
+use super::packet_bounds::PacketBounds;
+use super::packet_setup::PacketSetup;
+use super::stack::{PACKET_STACK, SINGLE_STACK};
+use super::tree::{Bvh, Bvh4, Bvh8, wide_build_options};
+use crate::accel::sah_build::build_tree;
+use crate::accel::{Accel, Primitives, Triangles};
+use crate::geometry::{ROBUST_FAR_SCALE, Ray, RayPacket};
+use crate::simd::Packet;
+use glam::Vec3;
+
+fn soup() -> Triangles {
+    let mut corners = Vec::new();
+    let mut s = 7u32;
+    let mut r = || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s as f32 / u32::MAX as f32
+    };
+    for _ in 0..3000 {
+        let c = Vec3::new(r(), r(), r()) * 10.0;
+        corners.push([
+            c,
+            c + Vec3::new(r(), r(), 0.1),
+            c + Vec3::new(0.2, r(), r()),
+        ]);
+    }
+    Triangles::from_corners(&corners)
+}
+
+/// A tree too deep for the packet stack traces its packets ray by ray, with the same
+/// answers as the packet kernels.
+#[test]
+fn packets_of_a_tree_too_deep_for_the_packet_stack_go_ray_by_ray() {
+    let mut bvh = Bvh8::build(soup());
+    assert!(bvh.stack_need > 0 && bvh.stack_need < PACKET_STACK);
+    let rays: Vec<Ray> = (0..512)
+        .map(|i| {
+            let a = i as f32 * 0.37;
+            Ray::new(
+                Vec3::new(5.0, 5.0, -20.0),
+                Vec3::new(a.cos() * 0.2, a.sin() * 0.2, 1.0),
+            )
+        })
+        .collect();
+    let mut packet = vec![None; rays.len()];
+    let mut packet_occ = vec![false; rays.len()];
+    bvh.closest_hit_batch(&rays, &mut packet);
+    bvh.any_hit_batch(&rays, &mut packet_occ);
+    assert!(packet.iter().filter(|h| h.is_some()).count() > 50);
+    bvh.stack_need = PACKET_STACK;
+    let mut deep = vec![None; rays.len()];
+    let mut deep_occ = vec![false; rays.len()];
+    bvh.closest_hit_batch(&rays, &mut deep);
+    bvh.any_hit_batch(&rays, &mut deep_occ);
+    assert_eq!(packet, deep);
+    assert_eq!(packet_occ, deep_occ);
+}
+
+/// Collapsing the top levels in parallel gives exactly the serial layout.
+#[test]
+fn parallel_collapse_lays_out_the_serial_tree() {
+    fn layout<const N: usize, P: Primitives>(prims: &P, levels: usize) -> Vec<u32> {
+        let (tree, ids) = build_tree(prims, wide_build_options(prims.as_triangles().is_some()));
+        let mut c = Collapse::<N> {
+            ids: &ids,
+            triangles: prims.as_triangles(),
+            nodes: Vec::new(),
+            groups: Vec::new(),
+        };
+        let root = c.collapse(&tree.expect("non-empty"), levels);
+        // every bit of the arrays, NaN corners of unused lanes included
+        let mut bits = vec![root];
+        for n in &c.nodes {
+            bits.extend(n.planes.iter().flatten().map(|x| x.to_bits()));
+            bits.extend(n.children);
+        }
+        for g in &c.groups {
+            bits.extend(g.v.iter().flatten().flatten().map(|x| x.to_bits()));
+            bits.extend(g.ids);
+        }
+        bits
+    }
+    let tris = soup();
+    assert_eq!(layout::<8, _>(&tris, 0), layout::<8, _>(&tris, 3));
+    assert_eq!(layout::<4, _>(&tris, 0), layout::<4, _>(&tris, 2));
+    let centers: Vec<Vec3> = (0..500)
+        .map(|i| Vec3::new(i as f32, (i * 7 % 13) as f32, 0.0))
+        .collect();
+    let spheres = crate::accel::Spheres {
+        center: centers,
+        radius: vec![0.4; 500],
+    };
+    assert_eq!(layout::<8, _>(&spheres, 0), layout::<8, _>(&spheres, 2));
+}
+
+/// The whole-packet node test never drops a child that some lane's own slab test
+/// enters: every node of both widths against packets of many shapes (shared and
+/// scattered origins, narrow and wide cones, nearly axis-parallel directions with
+/// huge reciprocals, intervals starting late and ending early).
+#[test]
+fn packet_bounds_never_cull_a_child_a_lane_enters() {
+    fn check<const N: usize>(bvh: &Bvh<Triangles, N>, rays: &[Ray]) -> (u64, u64)
+    where
+        Width<N>: NodeWidth,
+    {
+        let packet = RayPacket::from_rays(rays);
+        let setup = PacketSetup::<Packet>::new(&packet);
+        let (mut entered, mut kept) = (0, 0);
+        for g in 0..setup.groups.min(3) {
+            let p = setup.group(g);
+            let mask = setup.group_mask[g];
+            let shared = setup.shared_origin;
+            let bounds =
+                PacketBounds::<<Width<N> as NodeWidth>::L>::new(&p, mask, p.tmax, shared, true);
+            let tcull = p.tmax * Packet::splat(ROBUST_FAR_SCALE);
+            for node in &bvh.nodes {
+                let cand = bounds.candidates(node);
+                for c in 0..N {
+                    if node.children[c] == EMPTY_CHILD {
+                        continue;
+                    }
+                    let bits = if shared {
+                        p.child_test::<true, N>(node, c, tcull).1
+                    } else {
+                        p.child_test::<false, N>(node, c, tcull).1
+                    };
+                    if bits & mask != 0 {
+                        entered += 1;
+                        assert!(cand >> c & 1 == 1, "child {c} culled, lanes {bits:b}");
+                    }
+                    kept += u64::from(cand >> c & 1);
+                }
+            }
+        }
+        (entered, kept)
+    }
+    let tris = soup();
+    let (b4, b8) = (Bvh4::build(tris.clone()), Bvh8::build(tris));
+    let mut s = 99u32;
+    let mut r = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s as f32 / u32::MAX as f32
+    };
+    let (mut entered, mut kept) = (0, 0);
+    for trial in 0..120 {
+        let spread = [0.0, 1e-3, 0.5, 4.0][trial % 4];
+        let cone = [1e-3, 0.05, 0.4][trial % 3];
+        let base = Vec3::new(5.0, 5.0, -10.0) + Vec3::new(r(), r(), r()) * 4.0;
+        let axis = if trial % 5 == 0 {
+            Vec3::new(1e-7, 2e-7, 1.0) // reciprocals near 1e7
+        } else {
+            (Vec3::new(r(), r(), 8.0) - Vec3::splat(0.5)).normalize()
+        };
+        let rays: Vec<Ray> = (0..16)
+            .map(|_| {
+                let o = base + Vec3::new(r(), r(), r()) * spread;
+                let d = (axis + Vec3::new(r() - 0.5, r() - 0.5, 0.0) * cone).normalize();
+                let (tmin, tmax) = if trial % 7 == 0 {
+                    (5.0, 14.0)
+                } else {
+                    (0.0, f32::INFINITY)
+                };
+                Ray::segment(o, d, tmin, tmax)
+            })
+            .collect();
+        for (e, k) in [check(&b4, &rays), check(&b8, &rays)] {
+            entered += e;
+            kept += k;
+        }
+    }
+    assert!(
+        entered > 1000,
+        "too few entered children to check: {entered}"
+    );
+    assert!(
+        kept < 3 * entered,
+        "the bounds cull little: {kept} kept, {entered} entered"
+    );
+}
+
+/// The stack need is the largest sum of (children - 1) along a path, and within the
+/// single-ray capacity.
+#[test]
+fn stack_need_bounds_the_pending_entries() {
+    let b4 = Bvh4::build(soup());
+    let b8 = Bvh8::build(soup());
+    assert!(b4.stack_need <= 3 * b4.info.max_depth);
+    assert!(b8.stack_need <= 7 * b8.info.max_depth);
+    assert!(b8.info.max_depth < b4.info.max_depth);
+    assert!(b8.stack_need < SINGLE_STACK);
+}

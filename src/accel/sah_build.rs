@@ -1,0 +1,672 @@
+//! The binned-SAH builder shared by the BVH2 and the N-wide BVHs (Wald 2007, "On fast
+//! Construction of SAH-based Bounding Volume Hierarchies"), laid out for large meshes
+//! the way Embree's builders are: each primitive is one 32-byte [`PrimRef`] (its box,
+//! its index in a spare lane), and every level reads and writes these arrays in order
+//! instead of gathering boxes and centroids through an index array.
+//!
+//! A node's references are partitioned out of place into a second array of the same
+//! length, and the two arrays swap roles at each level (no copy back); left keeps the
+//! input order, right reverses it. Nodes of at least [`PARALLEL_NODE`] primitives bin
+//! in parallel chunks from the root on and, with more than one thread, partition in
+//! parallel too (count per chunk, then scatter); their subtrees go to separate threads.
+//! Leaves write their primitives' indices into the output order as they are made.
+//!
+//! Dead ends, measured at 1 thread on the procedural mesh (see README, "Build
+//! scaling"): the previous builder gathered a 32-byte box and a 16-byte centroid
+//! through an index array and copied each partition back from scratch; at 10^7
+//! triangles it built at 0.65 Mtriangles/s, half its rate at 10^5.
+
+use super::Bvh2BuildOptions;
+use super::Primitives;
+use crate::geometry::Aabb;
+use glam::{BVec3A, Vec3A, Vec4};
+use rayon::prelude::*;
+
+/// Past this depth the builder splits at the object median, so the depth of any tree
+/// stays below `MEDIAN_DEPTH + 32` and a fixed traversal stack suffices.
+pub(super) const MEDIAN_DEPTH: usize = 40;
+/// Subtrees with fewer primitives are built on the current thread.
+const PARALLEL_THRESHOLD: usize = 4096;
+/// Nodes with at least this many primitives bin (and, with several threads,
+/// partition) in parallel chunks of [`PARALLEL_THRESHOLD`].
+const PARALLEL_NODE: usize = PARALLEL_THRESHOLD * 4;
+
+/// A box in SIMD-friendly form for the builder (`Vec3A`: one register per corner).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BBox {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl BBox {
+    const EMPTY: BBox = BBox {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    #[inline(always)]
+    fn grow(&mut self, o: &BBox) {
+        self.min = self.min.min(o.min);
+        self.max = self.max.max(o.max);
+    }
+
+    #[inline(always)]
+    fn grow_point(&mut self, p: Vec3A) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    #[inline(always)]
+    fn union(mut self, o: &BBox) -> BBox {
+        self.grow(o);
+        self
+    }
+
+    #[inline(always)]
+    fn area(&self) -> f32 {
+        let e = (self.max - self.min).max(Vec3A::ZERO);
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    fn extent(&self) -> Vec3A {
+        (self.max - self.min).max(Vec3A::ZERO)
+    }
+
+    fn to_aabb(self) -> Aabb {
+        Aabb::new(self.min.into(), self.max.into())
+    }
+}
+
+/// A primitive as the builder sees it (Embree's `PrimRef`): its box, with its index in
+/// the `w` lane of `min`. 32 bytes, two SIMD loads.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(super) struct PrimRef {
+    min: Vec4,
+    max: Vec4,
+}
+
+const _: () = assert!(std::mem::size_of::<PrimRef>() == 32);
+
+impl PrimRef {
+    fn new(b: Aabb, id: u32) -> Self {
+        PrimRef {
+            min: b.min.extend(f32::from_bits(id)),
+            max: b.max.extend(0.0),
+        }
+    }
+
+    #[inline(always)]
+    fn bounds(&self) -> BBox {
+        BBox {
+            min: Vec3A::from_vec4(self.min),
+            max: Vec3A::from_vec4(self.max),
+        }
+    }
+
+    /// The centre of the box: `0.5 * (min + max)`, as `Aabb::center`.
+    #[inline(always)]
+    fn centroid(&self) -> Vec3A {
+        (Vec3A::from_vec4(self.min) + Vec3A::from_vec4(self.max)) * 0.5
+    }
+
+    #[inline(always)]
+    fn id(&self) -> u32 {
+        self.min.w.to_bits()
+    }
+}
+
+/// Intermediate tree of the parallel build: flattened into a BVH2, or collapsed
+/// straight into a BVH4/8.
+pub(super) enum BuildNode {
+    Leaf {
+        bounds: BBox,
+        start: usize,
+        count: usize,
+    },
+    Interior {
+        bounds: BBox,
+        children: Box<[BuildNode; 2]>,
+    },
+}
+
+impl BuildNode {
+    /// Surface area of the node's box.
+    pub(super) fn area(&self) -> f32 {
+        match self {
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.area(),
+        }
+    }
+
+    pub(super) fn bounds(&self) -> Aabb {
+        match self {
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.to_aabb(),
+        }
+    }
+}
+
+struct Builder {
+    opts: Bvh2BuildOptions,
+}
+
+/// Most bins per axis the builder supports.
+pub(super) const MAX_BINS: usize = 32;
+
+/// Per-axis bins of one node: bounds and primitive counts.
+#[derive(Clone)]
+struct Bins {
+    bounds: [[BBox; MAX_BINS]; 3],
+    counts: [[u32; MAX_BINS]; 3],
+}
+
+impl Bins {
+    fn new() -> Self {
+        Bins {
+            bounds: [[BBox::EMPTY; MAX_BINS]; 3],
+            counts: [[0; MAX_BINS]; 3],
+        }
+    }
+
+    fn merge(mut self, o: &Bins) -> Bins {
+        for a in 0..3 {
+            for k in 0..MAX_BINS {
+                self.bounds[a][k].grow(&o.bounds[a][k]);
+                self.counts[a][k] += o.counts[a][k];
+            }
+        }
+        self
+    }
+
+    /// Empties the first `n` bins of each axis (the only ones a node uses).
+    fn clear(&mut self, n: usize) {
+        for a in 0..3 {
+            self.bounds[a][..n].fill(BBox::EMPTY);
+            self.counts[a][..n].fill(0);
+        }
+    }
+
+    #[inline(always)]
+    fn add(&mut self, k: [usize; 3], b: &BBox) {
+        for (axis, &bin) in k.iter().enumerate() {
+            self.counts[axis][bin] += 1;
+            self.bounds[axis][bin].grow(b);
+        }
+    }
+
+    /// Bins `refs` (centroids binned with `lo`, `scale`, `bins_n`).
+    #[inline(always)]
+    fn add_all(&mut self, refs: &[PrimRef], lo: Vec3A, scale: Vec3A, bins_n: usize) {
+        for r in refs {
+            let k = bins_of(r.centroid(), lo, scale, bins_n);
+            self.add(k, &r.bounds());
+        }
+    }
+}
+
+thread_local! {
+    /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
+    /// than building 3.5 KB of bins per node, most of which are tiny.
+    static SCRATCH_BINS: std::cell::RefCell<Bins> = std::cell::RefCell::new(Bins::new());
+}
+
+/// Where to split a node: axis, first bin of the right side, bin count, SAH cost.
+#[derive(Clone, Copy)]
+struct Split {
+    axis: usize,
+    bin: usize,
+    bins: usize,
+    cost: f32,
+}
+
+/// A node's bounds and its centroids' bounds, passed from parent to child so that
+/// no pass over the primitives is spent recomputing them.
+#[derive(Clone, Copy)]
+struct NodeBounds {
+    bounds: BBox,
+    centroids: BBox,
+}
+
+impl NodeBounds {
+    const EMPTY: NodeBounds = NodeBounds {
+        bounds: BBox::EMPTY,
+        centroids: BBox::EMPTY,
+    };
+
+    fn union(self, o: &NodeBounds) -> NodeBounds {
+        NodeBounds {
+            bounds: self.bounds.union(&o.bounds),
+            centroids: self.centroids.union(&o.centroids),
+        }
+    }
+
+    /// Grows the bounds by `r` where `mask` is set, leaves them alone elsewhere
+    /// (branch-free: the box of a primitive of the other side is replaced by an empty
+    /// one).
+    #[inline(always)]
+    fn grow_masked(&mut self, r: &PrimRef, mask: BVec3A) {
+        let inf = Vec3A::splat(f32::INFINITY);
+        let (b, c) = (r.bounds(), r.centroid());
+        self.bounds.min = self.bounds.min.min(Vec3A::select(mask, b.min, inf));
+        self.bounds.max = self.bounds.max.max(Vec3A::select(mask, b.max, -inf));
+        self.centroids.min = self.centroids.min.min(Vec3A::select(mask, c, inf));
+        self.centroids.max = self.centroids.max.max(Vec3A::select(mask, c, -inf));
+    }
+}
+
+/// The binned-SAH build itself: the tree (`None` for no primitives) and the primitive
+/// order its leaf ranges index.
+pub(super) fn build_tree<P: Primitives>(
+    prims: &P,
+    opts: Bvh2BuildOptions,
+) -> (Option<BuildNode>, Vec<u32>) {
+    assert!(
+        opts.bins >= 2 && opts.bins <= MAX_BINS,
+        "bins must be in 2..={MAX_BINS}"
+    );
+    let n = prims.count();
+    assert!(
+        u32::try_from(n).is_ok(),
+        "at most 2^32 - 1 primitives per structure"
+    );
+    let mut refs: Vec<PrimRef> = (0..n)
+        .into_par_iter()
+        .with_min_len(PARALLEL_THRESHOLD)
+        .map(|i| PrimRef::new(prims.bounds(i), i as u32))
+        .collect();
+    let mut ids = vec![0u32; n];
+    if n == 0 {
+        return (None, ids);
+    }
+    let mut scratch = refs.clone();
+    let builder = Builder { opts };
+    let nb = node_bounds(&refs);
+    let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb);
+    (Some(root), ids)
+}
+
+/// Bounds and centroid bounds of `refs`.
+fn node_bounds(refs: &[PrimRef]) -> NodeBounds {
+    let fold = |mut acc: NodeBounds, r: &PrimRef| {
+        acc.bounds.grow(&r.bounds());
+        acc.centroids.grow_point(r.centroid());
+        acc
+    };
+    if refs.len() >= PARALLEL_NODE {
+        refs.par_chunks(PARALLEL_THRESHOLD)
+            .map(|c| c.iter().fold(NodeBounds::EMPTY, fold))
+            .reduce(|| NodeBounds::EMPTY, |a, b| a.union(&b))
+    } else {
+        refs.iter().fold(NodeBounds::EMPTY, fold)
+    }
+}
+
+/// Bin indices of a centroid on all three axes at once.
+#[inline(always)]
+fn bins_of(c: Vec3A, lo: Vec3A, scale: Vec3A, bins: usize) -> [usize; 3] {
+    // Clamped on both sides, and min/max return the non-NaN operand, so every lane is
+    // finite and in [0, bins - 1] even for a NaN centroid.
+    let k = ((c - lo) * scale)
+        .max(Vec3A::ZERO)
+        .min(Vec3A::splat((bins - 1) as f32));
+    // SAFETY: `to_int_unchecked` needs a finite value that fits the target type, which
+    // the clamp above guarantees. The checked `as` cast saturates and tests for NaN on
+    // every call, and cost 15 % of the build's instructions here.
+    unsafe {
+        [
+            k.x.to_int_unchecked::<u32>() as usize,
+            k.y.to_int_unchecked::<u32>() as usize,
+            k.z.to_int_unchecked::<u32>() as usize,
+        ]
+    }
+}
+
+fn bin_scale(cb: &BBox, bins: usize) -> Vec3A {
+    let e = cb.extent();
+    Vec3A::select(
+        e.cmpgt(Vec3A::ZERO),
+        Vec3A::splat(bins as f32) / e,
+        Vec3A::ZERO,
+    )
+}
+
+impl Builder {
+    /// Builds the subtree over `refs` (which start at global offset `offset`), using
+    /// `scratch` (as long as `refs`) for the partition and writing the primitive order
+    /// into `ids` (as long as `refs`).
+    fn build(
+        &self,
+        refs: &mut [PrimRef],
+        scratch: &mut [PrimRef],
+        ids: &mut [u32],
+        offset: usize,
+        depth: usize,
+        nb: NodeBounds,
+    ) -> BuildNode {
+        let n = refs.len();
+        let mut leaf = |refs: &[PrimRef]| {
+            for (o, r) in ids.iter_mut().zip(refs) {
+                *o = r.id();
+            }
+            BuildNode::Leaf {
+                bounds: nb.bounds,
+                start: offset,
+                count: n,
+            }
+        };
+        if n == 1 {
+            return leaf(refs);
+        }
+        // Any split costs at least `traversal_cost` (the area terms are not negative), so
+        // a leaf that costs no more is the SAH's answer without binning: the same tree,
+        // and a third fewer nodes binned for 4-wide leaves (every 1-4 triangle leaf).
+        if n <= self.opts.max_leaf
+            && self.opts.intersection_cost * self.blocks(n as u32) <= self.opts.traversal_cost
+        {
+            return leaf(refs);
+        }
+
+        let sah = depth < MEDIAN_DEPTH && nb.centroids.extent().max_element() > 0.0;
+        let mut split = None;
+        if let Some(s) = sah.then(|| self.best_split(refs, &nb)).flatten() {
+            let leaf_cost = self.opts.intersection_cost * self.blocks(n as u32);
+            if n <= self.opts.max_leaf && leaf_cost <= s.cost {
+                return leaf(refs);
+            }
+            let (m, left, right) = partition(refs, scratch, &nb.centroids, s);
+            if m > 0 && m < n {
+                split = Some((m, left, right));
+            }
+        }
+        // The children's references: in `scratch` after a partition (the arrays swap
+        // roles), in `refs` after the median split.
+        let (mid, left, right, (data, spare)) = match split {
+            Some((m, l, r)) => (m, l, r, (scratch, refs)),
+            None => {
+                if n <= self.opts.max_leaf {
+                    return leaf(refs);
+                }
+                // No useful SAH split (identical centroids, or too deep): object median
+                // along the widest centroid axis, which always makes progress.
+                let e = nb.centroids.extent();
+                let axis = if e.x >= e.y && e.x >= e.z {
+                    0
+                } else if e.y >= e.z {
+                    1
+                } else {
+                    2
+                };
+                let m = n / 2;
+                refs.select_nth_unstable_by(m, |a, b| {
+                    a.centroid()[axis].total_cmp(&b.centroid()[axis])
+                });
+                let (l, r) = (node_bounds(&refs[..m]), node_bounds(&refs[m..]));
+                (m, l, r, (refs, scratch))
+            }
+        };
+
+        let (ld, rd) = data.split_at_mut(mid);
+        let (ls, rs) = spare.split_at_mut(mid);
+        let (li, ri) = ids.split_at_mut(mid);
+        let (l, r) = if n >= PARALLEL_THRESHOLD {
+            rayon::join(
+                || self.build(ld, ls, li, offset, depth + 1, left),
+                || self.build(rd, rs, ri, offset + mid, depth + 1, right),
+            )
+        } else {
+            (
+                self.build(ld, ls, li, offset, depth + 1, left),
+                self.build(rd, rs, ri, offset + mid, depth + 1, right),
+            )
+        };
+        BuildNode::Interior {
+            bounds: nb.bounds,
+            children: Box::new([l, r]),
+        }
+    }
+
+    /// Leaf test units for `n` primitives: started blocks of `block_size`.
+    #[inline(always)]
+    fn blocks(&self, n: u32) -> f32 {
+        n.div_ceil(self.opts.block_size.max(1) as u32) as f32
+    }
+
+    /// Bins centroids on all three axes and sweeps for the cheapest plane.
+    fn best_split(&self, refs: &[PrimRef], nb: &NodeBounds) -> Option<Split> {
+        // Small nodes need few bins: at most two per primitive.
+        let bins_n = self.opts.bins.min(refs.len().max(4));
+        let cb = &nb.centroids;
+        let scale = bin_scale(cb, bins_n);
+        if refs.len() >= PARALLEL_NODE {
+            let bins = refs
+                .par_chunks(PARALLEL_THRESHOLD)
+                .map(|chunk| {
+                    let mut bins = Bins::new();
+                    bins.add_all(chunk, cb.min, scale, bins_n);
+                    bins
+                })
+                .reduce(Bins::new, |a, b| a.merge(&b));
+            self.sweep(&bins, bins_n, nb)
+        } else {
+            SCRATCH_BINS.with_borrow_mut(|bins| {
+                bins.clear(bins_n);
+                bins.add_all(refs, cb.min, scale, bins_n);
+                self.sweep(bins, bins_n, nb)
+            })
+        }
+    }
+
+    /// The SAH sweep over filled bins: the cheapest plane on any axis.
+    fn sweep(&self, bins: &Bins, bins_n: usize, nb: &NodeBounds) -> Option<Split> {
+        let scale = bin_scale(&nb.centroids, bins_n);
+
+        let inv_area = 1.0 / nb.bounds.area().max(f32::MIN_POSITIVE);
+        let mut best: Option<Split> = None;
+        let mut right_area = [0.0f32; MAX_BINS];
+        let mut right_count = [0u32; MAX_BINS];
+        for axis in 0..3 {
+            if scale[axis] == 0.0 {
+                continue;
+            }
+            let (mut acc, mut cnt) = (BBox::EMPTY, 0);
+            for k in (1..bins_n).rev() {
+                acc.grow(&bins.bounds[axis][k]);
+                cnt += bins.counts[axis][k];
+                right_area[k] = acc.area();
+                right_count[k] = cnt;
+            }
+            let (mut acc, mut cnt) = (BBox::EMPTY, 0);
+            for k in 1..bins_n {
+                acc.grow(&bins.bounds[axis][k - 1]);
+                cnt += bins.counts[axis][k - 1];
+                if cnt == 0 || right_count[k] == 0 {
+                    continue;
+                }
+                let cost = self.opts.traversal_cost
+                    + self.opts.intersection_cost
+                        * (acc.area() * self.blocks(cnt)
+                            + right_area[k] * self.blocks(right_count[k]))
+                        * inv_area;
+                if best.is_none_or(|b| cost < b.cost) {
+                    best = Some(Split {
+                        axis,
+                        bin: k,
+                        bins: bins_n,
+                        cost,
+                    });
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Whether a reference goes to the left of split `s`.
+#[inline(always)]
+fn goes_left(r: &PrimRef, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
+    bins_of(r.centroid(), lo, scale, s.bins)[s.axis] < s.bin
+}
+
+/// Writes the references of `src` whose centroid bin is below the split bin to the
+/// front of `dst` in order, the others to the back in reverse order, and gathers both
+/// sides' bounds on the way. Returns the left count and the bounds.
+///
+/// Serial: branch-free (which side a primitive goes to is a coin flip to the branch
+/// predictor), each reference written to both the next left and the next right slot
+/// and only one cursor advanced. In parallel (nodes of at least [`PARALLEL_NODE`] with
+/// more than one thread): chunks count their sides first, then each writes its part of
+/// both sides, to the same places the serial loop would.
+fn partition(
+    src: &[PrimRef],
+    dst: &mut [PrimRef],
+    cb: &BBox,
+    s: Split,
+) -> (usize, NodeBounds, NodeBounds) {
+    let scale = bin_scale(cb, s.bins);
+    let n = src.len();
+    if n >= PARALLEL_NODE && rayon::current_num_threads() > 1 {
+        return partition_parallel(src, dst, cb.min, scale, s);
+    }
+    let (mut left, mut right) = (NodeBounds::EMPTY, NodeBounds::EMPTY);
+    let (mut lo, mut hi) = (0usize, n);
+    for r in src {
+        let l = goes_left(r, cb.min, scale, s);
+        // lo < hi here: fewer than n references are placed
+        dst[lo] = *r;
+        dst[hi - 1] = *r;
+        lo += usize::from(l);
+        hi -= usize::from(!l);
+        left.grow_masked(r, BVec3A::splat(l));
+        right.grow_masked(r, BVec3A::splat(!l));
+    }
+    (lo, left, right)
+}
+
+/// The parallel partition: the same output as the serial loop of [`partition`].
+fn partition_parallel(
+    src: &[PrimRef],
+    dst: &mut [PrimRef],
+    lo: Vec3A,
+    scale: Vec3A,
+    s: Split,
+) -> (usize, NodeBounds, NodeBounds) {
+    // Pass 1: per chunk, the left count and both sides' bounds.
+    let counts: Vec<(usize, NodeBounds, NodeBounds)> = src
+        .par_chunks(PARALLEL_THRESHOLD)
+        .map(|chunk| {
+            let (mut left, mut right) = (NodeBounds::EMPTY, NodeBounds::EMPTY);
+            let mut k = 0;
+            for r in chunk {
+                let l = goes_left(r, lo, scale, s);
+                k += usize::from(l);
+                left.grow_masked(r, BVec3A::splat(l));
+                right.grow_masked(r, BVec3A::splat(!l));
+            }
+            (k, left, right)
+        })
+        .collect();
+    let mid: usize = counts.iter().map(|c| c.0).sum();
+    let (left, right) = counts
+        .iter()
+        .fold((NodeBounds::EMPTY, NodeBounds::EMPTY), |(a, b), c| {
+            (a.union(&c.1), b.union(&c.2))
+        });
+    // Pass 2: chunk j's lefts follow those of chunks before it; its rights, reversed,
+    // precede (from the back) those of chunks before it.
+    let (dst_left, dst_right) = dst.split_at_mut(mid);
+    let mut left_parts = Vec::with_capacity(counts.len());
+    let mut right_parts = Vec::with_capacity(counts.len());
+    let (mut lrest, mut rrest) = (dst_left, dst_right);
+    for (chunk, c) in src.chunks(PARALLEL_THRESHOLD).zip(&counts) {
+        let (l, lr) = lrest.split_at_mut(c.0);
+        let (rr, r) = rrest.split_at_mut(rrest.len() - (chunk.len() - c.0));
+        left_parts.push(l);
+        right_parts.push(r);
+        (lrest, rrest) = (lr, rr);
+    }
+    src.par_chunks(PARALLEL_THRESHOLD)
+        .zip(left_parts.into_par_iter().zip(right_parts.into_par_iter()))
+        .for_each(|(chunk, (l, r))| {
+            let (mut a, mut b) = (0, r.len());
+            for x in chunk {
+                if goes_left(x, lo, scale, s) {
+                    l[a] = *x;
+                    a += 1;
+                } else {
+                    b -= 1;
+                    r[b] = *x;
+                }
+            }
+        });
+    (mid, left, right)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refs(n: usize) -> Vec<PrimRef> {
+        (0..n)
+            .map(|i| {
+                let x = ((i * 7919) % 1013) as f32;
+                let y = ((i * 104_729) % 997) as f32 * 0.5;
+                let b = Aabb::new(
+                    glam::Vec3::new(x, y, 0.0),
+                    glam::Vec3::new(x + 1.0, y + 2.0, 1.0),
+                );
+                PrimRef::new(b, i as u32)
+            })
+            .collect()
+    }
+
+    fn bits(refs: &[PrimRef]) -> Vec<u32> {
+        refs.iter()
+            .flat_map(|r| r.min.to_array().into_iter().chain(r.max.to_array()))
+            .map(f32::to_bits)
+            .collect()
+    }
+
+    /// The parallel partition writes exactly what the serial loop writes (left in
+    /// input order, right reversed) and gathers the same bounds.
+    #[test]
+    fn parallel_partition_matches_the_serial_one() {
+        let src = refs(PARALLEL_NODE * 2 + 123);
+        let nb = node_bounds(&src);
+        let s = Split {
+            axis: 0,
+            bin: 13,
+            bins: 32,
+            cost: 0.0,
+        };
+        let scale = bin_scale(&nb.centroids, s.bins);
+        let mut serial = src.clone();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let (m1, l1, r1) = pool.install(|| partition(&src, &mut serial, &nb.centroids, s));
+        let mut parallel = src.clone();
+        let (m2, l2, r2) = partition_parallel(&src, &mut parallel, nb.centroids.min, scale, s);
+        assert!(m1 > 1000 && m1 < src.len() - 1000, "a real split: {m1}");
+        assert_eq!(m1, m2);
+        assert_eq!(bits(&serial), bits(&parallel));
+        for (a, b) in [(l1, l2), (r1, r2)] {
+            assert_eq!(a.bounds.min, b.bounds.min);
+            assert_eq!(a.bounds.max, b.bounds.max);
+            assert_eq!(a.centroids.min, b.centroids.min);
+            assert_eq!(a.centroids.max, b.centroids.max);
+        }
+        // left in input order, right reversed
+        let ids: Vec<u32> = serial.iter().map(PrimRef::id).collect();
+        assert!(ids[..m1].windows(2).all(|w| w[0] < w[1]));
+        assert!(ids[m1..].windows(2).all(|w| w[0] > w[1]));
+    }
+
+    /// The id survives the round trip through the spare lane, NaN-pattern ids included.
+    #[test]
+    fn prim_ref_keeps_its_id() {
+        let b = Aabb::new(glam::Vec3::ZERO, glam::Vec3::ONE);
+        for id in [0, 1, 0x7fc0_0001, u32::MAX - 1] {
+            assert_eq!(PrimRef::new(b, id).id(), id);
+        }
+    }
+}
