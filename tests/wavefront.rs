@@ -246,6 +246,13 @@ fn the_scene_decides_the_pipeline() {
     for stage in ["camera", "trace", "shade"] {
         assert!(stages[stage].as_f64().unwrap() >= 0.0, "whitted: {stage}");
     }
+    // The queue high-water mark is reported: 768 camera rays in batches of at most
+    // `MAX_WAVE_PATHS` paths, so at least one camera ray and at most the bound.
+    let peak = s["peak_queue_paths"].as_u64().expect("peak_queue_paths");
+    assert!(
+        peak >= 1 && peak <= wavefront::MAX_WAVE_PATHS as u64,
+        "{peak}"
+    );
 
     // The sphereflake is mirror metal without glass: no refraction at all.
     let s = stats("sphereflake.toml");
@@ -266,4 +273,39 @@ fn the_scene_decides_the_pipeline() {
     assert!(stages.get("shadow").is_none(), "area_lights: {stages}");
     assert!(stages["area_shadow"].as_f64().is_some());
     assert!(rays["shadow"].as_u64().unwrap() > 0);
+}
+
+/// The wavefront's queues hold a bounded number of paths whatever the samples per
+/// pixel: at 1 and at 4096 camera rays per pixel (dof_area.toml, 4x4 pixels; 256 eye
+/// samples x 16 lens points) the peak stays within `MAX_WAVE_PATHS`. dof_area has no
+/// mirror or glass, so every path ends at its first hit and the bound is exact: a batch
+/// of `b` camera rays holds at most `b (1 + fan-out)` paths, and `b` is chosen so that
+/// this is at most `MAX_WAVE_PATHS`. Before the queues were bounded, a tile held all of
+/// its camera rays and their shadow rays at once (here 65536 camera rays and 4 shadow
+/// rays each), which is what the second assertion would have seen.
+#[test]
+fn wavefront_queues_are_bounded_whatever_the_sample_counts() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/dof_area.toml");
+    let scene = load_scene(&path).unwrap();
+    let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+    let mut peaks = Vec::new();
+    for (spp, lens) in [(1u32, 1u32), (256, 16)] {
+        let mut o = RenderOptions::from_scene(&scene);
+        o.width = 4;
+        o.height = 4;
+        o.spp = spp;
+        o.samples.lens = lens;
+        o.samples.shadow = 4;
+        let out = wavefront::render(&scene, &accel, &o);
+        assert_eq!(out.rays.camera, 16 * (spp * lens) as u64);
+        assert!(
+            out.peak_queue_paths >= 1 && out.peak_queue_paths <= wavefront::MAX_WAVE_PATHS as u64,
+            "{spp} spp x {lens} lens: peak {} paths",
+            out.peak_queue_paths
+        );
+        peaks.push(out.peak_queue_paths);
+    }
+    // One ray per pixel: all 16 camera rays fit one batch, with at most 4 shadow rays
+    // each (one area light, 4 samples), all queued before any is traced.
+    assert!(peaks[0] <= 16 * 5, "{peaks:?}");
 }
