@@ -182,10 +182,16 @@ fn wavefront_is_deterministic_across_thread_counts() {
 }
 
 fn stats(scene: &str) -> serde_json::Value {
+    stats_with(scene, &[])
+}
+
+/// `--stats-json` of a 32x24, 1 spp wavefront render of `scene`, with `extra` flags.
+fn stats_with(scene: &str, extra: &[&str]) -> serde_json::Value {
     let dir = std::env::temp_dir().join(format!(
-        "packet-render-wavefront-{}-{}",
+        "packet-render-wavefront-{}-{}-{}",
         std::process::id(),
-        scene.replace('.', "_")
+        scene.replace('.', "_"),
+        extra.len()
     ));
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("stats.json");
@@ -213,6 +219,7 @@ fn stats(scene: &str) -> serde_json::Value {
             "--stats-json",
             json.to_str().unwrap(),
         ])
+        .args(extra)
         .output()
         .expect("binary runs");
     assert!(
@@ -308,4 +315,35 @@ fn wavefront_queues_are_bounded_whatever_the_sample_counts() {
     // One ray per pixel: all 16 camera rays fit one batch, with at most 4 shadow rays
     // each (one area light, 4 samples), all queued before any is traced.
     assert!(peaks[0] <= 16 * 5, "{peaks:?}");
+}
+
+/// Time by stage: at one thread the stages are disjoint intervals of the render phase,
+/// so each is non-negative and together they take no more than it. The Whitted room
+/// (mirror, glass, point lights) has the camera, trace, shade, shadow, reflection and
+/// refraction stages.
+#[test]
+fn stage_times_are_part_of_the_render_phase() {
+    let s = stats_with("whitted.toml", &["--threads", "1"]);
+    let stages = s["stages_ms"].as_object().expect("stages_ms");
+    for key in [
+        "camera",
+        "trace",
+        "shade",
+        "shadow",
+        "reflection",
+        "refraction",
+    ] {
+        assert!(stages.contains_key(key), "missing stage {key}: {stages:?}");
+    }
+    let mut sum = 0.0;
+    for (key, v) in stages {
+        let ms = v.as_f64().unwrap();
+        assert!(ms >= 0.0, "{key}: {ms}");
+        sum += ms;
+    }
+    let render = s["time_ms"]["render"].as_f64().unwrap();
+    assert!(
+        sum > 0.0 && sum <= render,
+        "stages {sum} ms, render {render} ms"
+    );
 }
