@@ -96,6 +96,9 @@ pub struct RenderReport {
     /// need is absent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stages_ms: Option<StageTimes>,
+    /// Most paths the wavefront's queues held at once in one worker (wavefront only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_queue_paths: Option<u64>,
     /// All rays traced per second of render time, in millions.
     pub mrays_per_s: f64,
     /// Samples whose radiance was NaN or infinite (written as black).
@@ -211,6 +214,7 @@ impl RenderJob {
                 total,
             },
             time_ms: time,
+            peak_queue_paths: out.stages_ms.is_some().then_some(out.peak_queue_paths),
             stages_ms: out.stages_ms,
             mrays_per_s: total as f64 / (time.render.max(1e-6) * 1e3),
             nonfinite_samples: out.nonfinite_samples,

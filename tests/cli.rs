@@ -405,15 +405,19 @@ fn sample_products_are_validated_before_work() {
         &out,
         "67108864 camera rays per pixel",
     );
-    // representable, but the wavefront's tile queues would need about 2^32 camera
-    // rays' worth of buffers (hundreds of GiB): refused with the estimate
+    // representable, but each of 256 workers holds the camera rays and radiance of up
+    // to two pixels of 2^24 camera rays (the wavefront's waves are bounded, its pixels
+    // in flight are not): about 570 GiB of buffers, refused with the estimate. (Before
+    // the waves were bounded, one 16x16 tile's queues alone asked for that much.)
     assert_fails(
         &[
             &dof,
             "--width",
-            "16",
+            "256",
             "--height",
-            "16",
+            "256",
+            "--threads",
+            "256",
             "--spp",
             "65536",
             "--lens-samples",

@@ -182,10 +182,16 @@ fn wavefront_is_deterministic_across_thread_counts() {
 }
 
 fn stats(scene: &str) -> serde_json::Value {
+    stats_with(scene, &[])
+}
+
+/// `--stats-json` of a 32x24, 1 spp wavefront render of `scene`, with `extra` flags.
+fn stats_with(scene: &str, extra: &[&str]) -> serde_json::Value {
     let dir = std::env::temp_dir().join(format!(
-        "packet-render-wavefront-{}-{}",
+        "packet-render-wavefront-{}-{}-{}",
         std::process::id(),
-        scene.replace('.', "_")
+        scene.replace('.', "_"),
+        extra.len()
     ));
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("stats.json");
@@ -213,6 +219,7 @@ fn stats(scene: &str) -> serde_json::Value {
             "--stats-json",
             json.to_str().unwrap(),
         ])
+        .args(extra)
         .output()
         .expect("binary runs");
     assert!(
@@ -246,6 +253,13 @@ fn the_scene_decides_the_pipeline() {
     for stage in ["camera", "trace", "shade"] {
         assert!(stages[stage].as_f64().unwrap() >= 0.0, "whitted: {stage}");
     }
+    // The queue high-water mark is reported: 768 camera rays in batches of at most
+    // `MAX_WAVE_PATHS` paths, so at least one camera ray and at most the bound.
+    let peak = s["peak_queue_paths"].as_u64().expect("peak_queue_paths");
+    assert!(
+        peak >= 1 && peak <= wavefront::MAX_WAVE_PATHS as u64,
+        "{peak}"
+    );
 
     // The sphereflake is mirror metal without glass: no refraction at all.
     let s = stats("sphereflake.toml");
@@ -266,4 +280,70 @@ fn the_scene_decides_the_pipeline() {
     assert!(stages.get("shadow").is_none(), "area_lights: {stages}");
     assert!(stages["area_shadow"].as_f64().is_some());
     assert!(rays["shadow"].as_u64().unwrap() > 0);
+}
+
+/// The wavefront's queues hold a bounded number of paths whatever the samples per
+/// pixel: at 1 and at 4096 camera rays per pixel (dof_area.toml, 4x4 pixels; 256 eye
+/// samples x 16 lens points) the peak stays within `MAX_WAVE_PATHS`. dof_area has no
+/// mirror or glass, so every path ends at its first hit and the bound is exact: a batch
+/// of `b` camera rays holds at most `b (1 + fan-out)` paths, and `b` is chosen so that
+/// this is at most `MAX_WAVE_PATHS`. Before the queues were bounded, a tile held all of
+/// its camera rays and their shadow rays at once (here 65536 camera rays and 4 shadow
+/// rays each), which is what the second assertion would have seen.
+#[test]
+fn wavefront_queues_are_bounded_whatever_the_sample_counts() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/dof_area.toml");
+    let scene = load_scene(&path).unwrap();
+    let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+    let mut peaks = Vec::new();
+    for (spp, lens) in [(1u32, 1u32), (256, 16)] {
+        let mut o = RenderOptions::from_scene(&scene);
+        o.width = 4;
+        o.height = 4;
+        o.spp = spp;
+        o.samples.lens = lens;
+        o.samples.shadow = 4;
+        let out = wavefront::render(&scene, &accel, &o);
+        assert_eq!(out.rays.camera, 16 * (spp * lens) as u64);
+        assert!(
+            out.peak_queue_paths >= 1 && out.peak_queue_paths <= wavefront::MAX_WAVE_PATHS as u64,
+            "{spp} spp x {lens} lens: peak {} paths",
+            out.peak_queue_paths
+        );
+        peaks.push(out.peak_queue_paths);
+    }
+    // One ray per pixel: all 16 camera rays fit one batch, with at most 4 shadow rays
+    // each (one area light, 4 samples), all queued before any is traced.
+    assert!(peaks[0] <= 16 * 5, "{peaks:?}");
+}
+
+/// Time by stage: at one thread the stages are disjoint intervals of the render phase,
+/// so each is non-negative and together they take no more than it. The Whitted room
+/// (mirror, glass, point lights) has the camera, trace, shade, shadow, reflection and
+/// refraction stages.
+#[test]
+fn stage_times_are_part_of_the_render_phase() {
+    let s = stats_with("whitted.toml", &["--threads", "1"]);
+    let stages = s["stages_ms"].as_object().expect("stages_ms");
+    for key in [
+        "camera",
+        "trace",
+        "shade",
+        "shadow",
+        "reflection",
+        "refraction",
+    ] {
+        assert!(stages.contains_key(key), "missing stage {key}: {stages:?}");
+    }
+    let mut sum = 0.0;
+    for (key, v) in stages {
+        let ms = v.as_f64().unwrap();
+        assert!(ms >= 0.0, "{key}: {ms}");
+        sum += ms;
+    }
+    let render = s["time_ms"]["render"].as_f64().unwrap();
+    assert!(
+        sum > 0.0 && sum <= render,
+        "stages {sum} ms, render {render} ms"
+    );
 }

@@ -4,6 +4,7 @@
 
 use super::camera_rays::SamplePlan;
 use super::tiles::TILE;
+use super::wavefront::MAX_WAVE_PATHS;
 use super::{IntegratorKind, RenderOptions};
 use crate::accel::SceneHit;
 use crate::error::{Error, Result};
@@ -17,9 +18,9 @@ use std::mem::size_of;
 /// before failing to set up a stack guard page.
 pub const MAX_THREADS: usize = 1024;
 
-/// Most camera rays per pixel (`spp x lens x time`): the wavefront integrator numbers
-/// the camera samples of a 16x16 tile with `u32`, so `256 x 2^24 = 2^32` is the limit
-/// of what it can represent.
+/// Most camera rays per pixel (`spp x lens x time`): both integrators hold one pixel's
+/// camera rays at once (2^24 rays are about 0.6 GiB), and the per-pixel sample indices
+/// (Sobol points, path identities of a round) are `u32`, with room to spare.
 pub const MAX_CAMERA_RAYS_PER_PIXEL: u64 = 1 << 24;
 
 /// Memory budget when the machine's available memory cannot be read (8 GiB).
@@ -107,12 +108,13 @@ pub struct SampleProducts {
     pub glossy: u64,
 }
 
-/// Estimated peak bytes of the per-thread buffers: for the wavefront integrator, the
-/// queues of one tile (`TILE^2` pixels with all their samples: camera queue, hits and
-/// accumulators, shadow queues, the first child wave) per worker; for the recursive one,
-/// one pixel's camera rays per worker. It assumes every camera ray hits and emits its
-/// shadow and glossy rays (the first wave's worst case) and leaves out the scene and
-/// the structure; used to refuse renders that cannot fit.
+/// Estimated peak bytes of the per-thread buffers: for the recursive integrator, one
+/// pixel's camera rays per worker; for the wavefront one, a batch of at most
+/// [`MAX_WAVE_PATHS`] paths in its queues (each entry counted at the largest queue
+/// entry, with its hit and camera-sample accumulator) plus the camera rays and
+/// radiance of the pixels in flight (two pixels' worth: the last pixel of a batch may
+/// continue in the next). It leaves out the scene and the structure; used to refuse
+/// renders that cannot fit.
 pub fn peak_buffer_bytes(
     integrator: IntegratorKind,
     products: &SampleProducts,
@@ -120,22 +122,20 @@ pub fn peak_buffer_bytes(
     workers: usize,
 ) -> u64 {
     let ray = size_of::<Ray>() as u64;
-    let pixels = (opts.width as u64 * opts.height as u64).min((TILE * TILE) as u64);
     let tiles = (opts.width.div_ceil(TILE) as u64) * (opts.height.div_ceil(TILE) as u64);
     let workers = (workers.max(1) as u64).min(tiles.max(1));
     let per_worker = match integrator {
         IntegratorKind::Whitted => products.camera.saturating_mul(ray + 8),
         IntegratorKind::Wavefront => {
+            let vec3 = size_of::<Vec3>() as u64;
             // queue entry: ray, slot, weight, throughput, path id
-            let queue = ray + 4 + 2 * size_of::<Vec3>() as u64 + 8;
-            let camera = queue + size_of::<Vec3>() as u64 + size_of::<Option<SceneHit>>() as u64;
-            let shadow = ray + 4 + size_of::<Vec3>() as u64 + 1;
-            let per_pixel = products
-                .camera
-                .saturating_mul(camera)
-                .saturating_add(products.shadow.saturating_mul(shadow))
-                .saturating_add(products.glossy.saturating_mul(queue));
-            per_pixel.saturating_mul(pixels)
+            let queue = ray + 4 + 2 * vec3 + 8;
+            let shadow = ray + 4 + vec3 + 1;
+            // hit, occlusion flag, accumulator and pixel index of a camera sample
+            let scratch = size_of::<Option<SceneHit>>() as u64 + 1 + vec3 + 8;
+            let wave = MAX_WAVE_PATHS as u64 * (queue.max(shadow) + scratch);
+            let pixels_in_flight = products.camera.saturating_mul(2 * (ray + 8 + vec3));
+            pixels_in_flight.saturating_add(wave)
         }
     };
     per_worker.saturating_mul(workers)
@@ -226,13 +226,26 @@ mod tests {
         let p = validate_sample_products(&scene, &o).unwrap();
         let w = IntegratorKind::Wavefront;
         let one = peak_buffer_bytes(w, &p, &o, 1);
-        // 256 pixels x 16384 camera rays, each at least a ray and its queue fields
-        assert!(one >= 256 * 16384 * size_of::<Ray>() as u64, "{one}");
-        // four tiles: four workers at most
-        assert_eq!(peak_buffer_bytes(w, &p, &o, 4), 4 * one);
-        assert_eq!(peak_buffer_bytes(w, &p, &o, 100), 4 * one);
+        // Two pixels of 16384 camera rays plus one bounded wave: not 256 pixels' worth,
+        // as before the queues were bounded (that estimate was 100x the recursive one).
         let whitted = peak_buffer_bytes(IntegratorKind::Whitted, &p, &o, 1);
-        assert!(whitted * 100 < one, "{whitted} {one}");
+        assert!(one >= 2 * 16384 * size_of::<Ray>() as u64, "{one}");
+        assert!(
+            one < 4 * whitted + MAX_WAVE_PATHS as u64 * 256,
+            "{whitted} {one}"
+        );
+        // The wave part does not grow with the sample counts, the pixel part does.
+        o.spp = 1;
+        let p1 = validate_sample_products(&scene, &o).unwrap();
+        let small = peak_buffer_bytes(w, &p1, &o, 1);
+        assert!(
+            small >= MAX_WAVE_PATHS as u64 * size_of::<Ray>() as u64,
+            "{small}"
+        );
+        assert!(small < one, "{small} {one}");
+        // four tiles: four workers at most
+        assert_eq!(peak_buffer_bytes(w, &p1, &o, 4), 4 * small);
+        assert_eq!(peak_buffer_bytes(w, &p1, &o, 100), 4 * small);
         assert!(check_memory(one, one, w).is_ok());
         let e = check_memory(one + 1, one, w).unwrap_err().to_string();
         assert!(e.contains("GiB") && e.contains("wavefront"), "{e}");

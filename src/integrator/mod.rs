@@ -182,6 +182,10 @@ pub struct RenderOutput {
     pub samples_drawn: EffectSamplesDrawn,
     /// Time by stage for the wavefront integrator; `None` for the recursive one.
     pub stages_ms: Option<StageTimes>,
+    /// Most paths (camera, child and shadow rays) the wavefront's queues held at once in
+    /// one worker, bounded by about [`wavefront::MAX_WAVE_PATHS`]; 0 for the recursive
+    /// integrator.
+    pub peak_queue_paths: u64,
 }
 
 /// Which integrator renders.

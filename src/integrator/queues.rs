@@ -79,26 +79,14 @@ impl<T> PerChildKind<T> {
         }
     }
 
-    /// Every kind with its value, in the order the wavefront traces its queues: reflection, refraction,
-    /// glossy, translucency.
+    /// Every kind with its value, in the order the wavefront traces its queues:
+    /// reflection, refraction, glossy, translucency.
     pub fn iter(&self) -> impl Iterator<Item = (ChildKind, &T)> {
         [
             (ChildKind::Reflection, &self.reflection),
             (ChildKind::Refraction, &self.refraction),
             (ChildKind::Glossy, &self.glossy),
             (ChildKind::Translucency, &self.translucency),
-        ]
-        .into_iter()
-    }
-
-    /// Every kind with its value, mutable, in the order the wavefront traces its queues: reflection, refraction,
-    /// glossy, translucency.
-    pub fn iter_mut(&mut self) -> impl Iterator<Item = (ChildKind, &mut T)> {
-        [
-            (ChildKind::Reflection, &mut self.reflection),
-            (ChildKind::Refraction, &mut self.refraction),
-            (ChildKind::Glossy, &mut self.glossy),
-            (ChildKind::Translucency, &mut self.translucency),
         ]
         .into_iter()
     }
@@ -135,12 +123,7 @@ mod tests {
     /// iteration follows the order the wavefront traces its queues.
     #[test]
     fn per_child_kind_is_keyed_by_kind() {
-        const ALL: [ChildKind; 4] = [
-            ChildKind::Reflection,
-            ChildKind::Refraction,
-            ChildKind::Glossy,
-            ChildKind::Translucency,
-        ];
+        const ALL: [ChildKind; 4] = ChildKind::ALL;
         let mut m = PerChildKind::<u32>::default();
         for (i, k) in ALL.into_iter().enumerate() {
             m[k] = 10 + i as u32;
@@ -157,8 +140,8 @@ mod tests {
         let kinds: Vec<_> = m.iter().map(|(k, &v)| (k, v)).collect();
         let expect: Vec<_> = ALL.into_iter().map(|k| (k, m[k])).collect();
         assert_eq!(kinds, expect);
-        for (_, v) in m.iter_mut() {
-            *v += 1;
+        for k in ALL {
+            m[k] += 1;
         }
         assert_eq!(
             m.map(|v| v * 2),

@@ -106,6 +106,7 @@ fn render_tile(
         samples_drawn: tracer.drawn,
         nonfinite_samples,
         stages: StageTimes::default(),
+        peak_queue_paths: 0,
     }
 }
 

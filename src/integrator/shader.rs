@@ -28,6 +28,16 @@ pub(crate) enum ChildKind {
     Translucency,
 }
 
+impl ChildKind {
+    /// Every kind, in the order the wavefront traces its queues.
+    pub const ALL: [ChildKind; 4] = [
+        ChildKind::Reflection,
+        ChildKind::Refraction,
+        ChildKind::Glossy,
+        ChildKind::Translucency,
+    ];
+}
+
 /// A shadow ray and what its light adds if nothing blocks it.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ShadowRay {

@@ -32,6 +32,8 @@ pub(crate) struct TileResult {
     pub samples_drawn: EffectSamplesDrawn,
     pub nonfinite_samples: u64,
     pub stages: StageTimes,
+    /// Most paths the wavefront's queues held at once (0 for the recursive integrator).
+    pub peak_queue_paths: u64,
 }
 
 /// Splits the image region (the whole image, or `opts.crop`) into tiles, renders them
@@ -100,6 +102,7 @@ pub(crate) fn render_tiles<W>(
     let mut rays = RayCounts::default();
     let mut samples_drawn = EffectSamplesDrawn::default();
     let mut stages = StageTimes::default();
+    let mut peak_queue_paths = 0;
     let mut nonfinite_samples = 0;
     for (t, values, _) in tiles {
         let mut values = values.into_iter();
@@ -112,6 +115,7 @@ pub(crate) fn render_tiles<W>(
         rays += t.rays;
         samples_drawn += t.samples_drawn;
         stages += t.stages;
+        peak_queue_paths = peak_queue_paths.max(t.peak_queue_paths);
         nonfinite_samples += t.nonfinite_samples;
     }
     RenderOutput {
@@ -121,6 +125,7 @@ pub(crate) fn render_tiles<W>(
         nonfinite_samples,
         samples_drawn,
         stages_ms: Some(stages),
+        peak_queue_paths,
         region,
         sums,
     }

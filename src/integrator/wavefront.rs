@@ -37,7 +37,7 @@
 //! shading, pixel filter, tiles) in their own files.
 
 use super::camera_packets::CameraStaging;
-use super::camera_rays::CameraSampler;
+use super::camera_rays::{CameraSampler, SamplePlan};
 use super::interaction::SurfaceInteraction;
 use super::pixel_filter::resolve_pixel;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
@@ -46,6 +46,7 @@ use super::tiles::{Tile, TileResult, render_tiles};
 use super::{RenderOptions, RenderOutput, shadow};
 use crate::accel::{BatchScratch, SceneAccel, SceneHit};
 use crate::film::PixelSums;
+use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
@@ -106,12 +107,39 @@ impl Pipeline {
     }
 }
 
+/// Most camera rays in flight per wave, per thread: a tile's camera rays are generated
+/// in batches of at most this many, divided by the most rays one camera ray's first hit
+/// can emit ([`Pipeline::first_hit_fanout`]), and each batch is traced, shaded and
+/// finished (every child wave) before the next is generated. So the queues of a wave
+/// hold about this many paths whatever the samples per pixel and per effect, and peak
+/// memory depends on the thread count and the image, not on `spp x lens x time x
+/// shadow`. 8192 paths keep 512 full 16-ray packets per batch.
+pub const MAX_WAVE_PATHS: usize = 8192;
+
+impl Pipeline {
+    /// The most rays the first hit of one camera ray can put in the queues: one shadow
+    /// ray per point, spot or directional light, `shadow` per area light, two
+    /// reflections (mirror and glass), one refraction or `glossy` translucent rays, and
+    /// `glossy` glossy rays.
+    pub fn first_hit_fanout(scene: &Scene, plan: &SamplePlan) -> usize {
+        let area = scene.lights.iter().filter(|l| l.is_area()).count();
+        let other = scene.lights.len() - area;
+        other + area * plan.shadow as usize + 3 + 2 * plan.glossy as usize
+    }
+
+    /// Camera rays per batch: [`MAX_WAVE_PATHS`] over the camera ray itself plus its
+    /// first hit's fan-out, at least one.
+    pub fn camera_batch(scene: &Scene, plan: &SamplePlan) -> usize {
+        (MAX_WAVE_PATHS / (1 + Self::first_hit_fanout(scene, plan))).max(1)
+    }
+}
+
 /// Where shading puts its results.
 struct Sinks {
-    /// Radiance of each camera sample of the tile.
+    /// Radiance of each camera sample of the batch in flight.
     acc: Vec<Vec3>,
-    /// Image index of each generated pixel, in generation order.
-    pixel_index: Vec<u64>,
+    /// Image index of the pixel of each camera sample of the batch in flight.
+    slot_pixel: Vec<u64>,
     next: PerChildKind<Option<RayQueue>>,
     /// One shadow queue per light, so that the rays of a packet converge on one light
     /// (interleaving two lights' rays splits every packet by octant).
@@ -123,16 +151,19 @@ struct Sinks {
     drawn: EffectSamplesDrawn,
 }
 
-/// Per-worker queues and scratch, sized by the largest tile seen, reused across tiles.
+/// Per-worker queues and scratch, sized by the largest batch seen, reused across tiles.
 struct Workspace {
-    /// Staging of the lane-parallel camera rays, and the tile's pixels in generation
-    /// order (`(x, y, index)`).
+    /// Staging of the lane-parallel camera rays, the pixels of the chunk being
+    /// generated (`(x, y, index)`) and their rays, before they enter the bounded queue.
     staging: CameraStaging,
     pixels: Vec<(u32, u32, u64)>,
-    /// Eye-sample offsets of each generated pixel, in generation order.
+    generated: Vec<Ray>,
+    /// Eye-sample offsets of each pixel not yet resolved, in generation order.
     offsets: Vec<(f32, f32)>,
-    /// Row-major position in the tile of each generated pixel.
-    order: Vec<u32>,
+    /// Row-major position in the tile of each pixel not yet resolved.
+    unresolved: Vec<u32>,
+    /// Radiance of the finished camera rays of the pixels not yet resolved.
+    radiance: Vec<Vec3>,
     camera: RayQueue,
     current: PerChildKind<Option<RayQueue>>,
     sinks: Sinks,
@@ -146,13 +177,15 @@ impl Workspace {
         Workspace {
             staging: CameraStaging::default(),
             pixels: Vec::new(),
+            generated: Vec::new(),
             offsets: Vec::new(),
-            order: Vec::new(),
+            unresolved: Vec::new(),
+            radiance: Vec::new(),
             camera: RayQueue::default(),
             current: p.child_queues().map(|on| on.then(RayQueue::default)),
             sinks: Sinks {
                 acc: Vec::new(),
-                pixel_index: Vec::new(),
+                slot_pixel: Vec::new(),
                 next: p.child_queues().map(|on| on.then(RayQueue::default)),
                 // One queue per light, and one for the environment after them.
                 shadow: (0..scene.lights.len() + scene.environment.is_some() as usize)
@@ -173,11 +206,33 @@ impl Workspace {
             scratch: BatchScratch::default(),
         }
     }
+
+    /// Paths held in the queues now: the queues being traced, the next wave's and
+    /// the shadow queues.
+    fn live_paths(&self, camera: bool) -> u64 {
+        let queued = |q: &PerChildKind<Option<RayQueue>>| -> usize {
+            q.iter()
+                .filter_map(|(_, q)| q.as_ref())
+                .map(|q| q.rays.len())
+                .sum()
+        };
+        let shadow: usize = self.sinks.shadow.iter().map(|q| q.rays.len()).sum();
+        let camera = if camera { self.camera.rays.len() } else { 0 };
+        (camera + queued(&self.current) + queued(&self.sinks.next) + shadow) as u64
+    }
 }
 
 /// Pixels are generated in 4×4 blocks: with one sample per pixel, 16 consecutive
 /// camera rays cover one block, the footprint of a coherent packet.
 const BLOCK: u32 = 4;
+
+/// What every wave of a tile needs.
+struct WaveContext<'a> {
+    shader: Shader<'a>,
+    accel: &'a SceneAccel,
+    /// Shadow rays through glass (`shadow` module) need the scene to look up materials.
+    transmit: Option<&'a Scene>,
+}
 
 fn render_tile(
     scene: &Scene,
@@ -189,7 +244,11 @@ fn render_tile(
     tile: Tile,
 ) -> TileResult {
     let plan = camera.plan;
-    let shader = Shader::new(scene, opts, plan);
+    let cx = WaveContext {
+        shader: Shader::new(scene, opts, plan),
+        accel,
+        transmit: shadow::transmits(scene, opts.transmitted_shadows).then_some(scene),
+    };
     let mut stages = StageTimes {
         shadow: pipeline.shadow.then_some(0.0),
         area_shadow: pipeline.area_shadow.then_some(0.0),
@@ -199,21 +258,81 @@ fn render_tile(
         translucency: pipeline.translucency.then_some(0.0),
         ..StageTimes::default()
     };
-    let sinks = &mut ws.sinks;
-    sinks.rays = RayCounts::default();
-    sinks.drawn = EffectSamplesDrawn::default();
-    sinks.acc.clear();
-    sinks.pixel_index.clear();
+    ws.sinks.rays = RayCounts::default();
+    ws.sinks.drawn = EffectSamplesDrawn::default();
+    ws.sinks.acc.clear();
+    ws.sinks.slot_pixel.clear();
     ws.offsets.clear();
-    ws.order.clear();
+    ws.unresolved.clear();
+    ws.radiance.clear();
     ws.camera.clear();
 
-    // Shadow rays through glass (`shadow` module) need the scene to look up materials.
-    let transmit = shadow::transmits(scene, opts.transmitted_shadows).then_some(scene);
+    let batch = Pipeline::camera_batch(scene, &plan);
+    let rays_per_pixel = (plan.eye_rendered() * camera.rays_per_eye()) as usize;
+    let eye = plan.eye_rendered() as usize;
+    let mut pixels =
+        vec![PixelSums::default(); ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize];
+    let mut nonfinite_samples = 0;
+    let mut peak = 0;
+    // Traces a batch to the end, then filters every pixel whose rays are all done.
+    let mut flush = |ws: &mut Workspace, stages: &mut StageTimes| {
+        peak = run_waves(&cx, ws, stages).max(peak);
+        ws.radiance.append(&mut ws.sinks.acc);
+        ws.sinks.slot_pixel.clear();
+        ws.camera.clear();
+        let done = (ws.radiance.len() / rays_per_pixel).min(ws.unresolved.len());
+        for (g, &at) in ws.unresolved[..done].iter().enumerate() {
+            pixels[at as usize] = resolve_pixel(
+                &plan,
+                &ws.offsets[g * eye..(g + 1) * eye],
+                &ws.radiance[g * rays_per_pixel..(g + 1) * rays_per_pixel],
+                &mut nonfinite_samples,
+            );
+        }
+        ws.unresolved.drain(..done);
+        ws.offsets.drain(..done * eye);
+        ws.radiance.drain(..done * rays_per_pixel);
+    };
 
-    // Camera rays.
-    let t = Instant::now();
+    // Camera rays of a chunk of pixels, built lane-parallel (`camera_packets`, the same
+    // rays as `pixel_samples`), enter the camera queue in batches of at most `batch`;
+    // a pixel with more rays than a batch is split across batches.
+    let chunk_pixels = (batch / rays_per_pixel).max(1);
+    let mut emit = |ws: &mut Workspace, stages: &mut StageTimes, t: &mut Instant, last: bool| {
+        let mut generated = std::mem::take(&mut ws.generated);
+        generated.clear();
+        camera.block_rays(
+            opts.seed,
+            &ws.pixels,
+            &mut ws.staging,
+            &mut ws.offsets,
+            &mut generated,
+            &mut ws.sinks.drawn,
+        );
+        ws.sinks.rays.camera += generated.len() as u64;
+        for (i, &ray) in generated.iter().enumerate() {
+            let slot = ws.sinks.acc.len() as u32;
+            let path = plan.first_path() + (i % rays_per_pixel) as u64;
+            ws.camera.push(ray, slot, Vec3::ONE, Vec3::ONE, path);
+            ws.sinks.acc.push(Vec3::ZERO);
+            ws.sinks.slot_pixel.push(ws.pixels[i / rays_per_pixel].2);
+            if ws.camera.rays.len() >= batch {
+                stages.camera += ms_since(*t);
+                flush(ws, stages);
+                *t = Instant::now();
+            }
+        }
+        ws.generated = generated;
+        ws.pixels.clear();
+        if last {
+            stages.camera += ms_since(*t);
+            if !ws.camera.rays.is_empty() {
+                flush(ws, stages);
+            }
+        }
+    };
     let tile_w = tile.x1 - tile.x0;
+    let mut t = Instant::now();
     ws.pixels.clear();
     for by in (tile.y0..tile.y1).step_by(BLOCK as usize) {
         for bx in (tile.x0..tile.x1).step_by(BLOCK as usize) {
@@ -221,56 +340,53 @@ fn render_tile(
                 for x in bx..(bx + BLOCK).min(tile.x1) {
                     let index = y as u64 * opts.width as u64 + x as u64;
                     ws.pixels.push((x, y, index));
-                    ws.order.push((y - tile.y0) * tile_w + (x - tile.x0));
-                    sinks.pixel_index.push(index);
+                    ws.unresolved.push((y - tile.y0) * tile_w + (x - tile.x0));
+                    if ws.pixels.len() >= chunk_pixels {
+                        emit(ws, &mut stages, &mut t, false);
+                    }
                 }
             }
         }
     }
-    // Built lane-parallel (`camera_packets`), the same rays as `pixel_samples`.
-    camera.block_rays(
-        opts.seed,
-        &ws.pixels,
-        &mut ws.staging,
-        &mut ws.offsets,
-        &mut ws.camera.rays,
-        &mut sinks.drawn,
-    );
-    let n = ws.camera.rays.len();
-    let rpp = (plan.eye_rendered() * camera.rays_per_eye()) as usize;
-    let q = &mut ws.camera;
-    q.slot.extend(0..n as u32);
-    q.weight.resize(n, Vec3::ONE);
-    q.throughput.resize(n, Vec3::ONE);
-    for _ in 0..n / rpp {
-        q.path
-            .extend((0..rpp as u64).map(|s| plan.first_path() + s));
+    emit(ws, &mut stages, &mut t, true);
+    debug_assert!(ws.unresolved.is_empty() && ws.radiance.is_empty());
+    TileResult {
+        tile,
+        pixels,
+        rays: ws.sinks.rays,
+        samples_drawn: ws.sinks.drawn,
+        nonfinite_samples,
+        stages,
+        peak_queue_paths: peak,
     }
-    sinks.acc.resize(n, Vec3::ZERO);
-    sinks.rays.camera += ws.camera.rays.len() as u64;
-    stages.camera += ms_since(t);
+}
 
+/// Traces the camera rays in `ws.camera` and every wave they cause, accumulating the
+/// radiance of each camera sample in `ws.sinks.acc`. Returns the most paths the queues
+/// held at once.
+fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u64 {
+    let (accel, transmit) = (cx.accel, cx.transmit);
     // Wave 0: camera rays.
     let t = Instant::now();
     trace_closest(accel, &ws.camera, &mut ws.hits, &mut ws.scratch);
     stages.trace += ms_since(t);
-    let rays_per_pixel = plan.eye_rendered() * camera.rays_per_eye();
     let t = Instant::now();
-    shade_queue(&shader, &ws.camera, &ws.hits, 0, rays_per_pixel, sinks);
+    shade_queue(&cx.shader, &ws.camera, &ws.hits, 0, &mut ws.sinks);
     stages.shade += ms_since(t);
+    let mut peak = ws.live_paths(true);
     trace_shadows(
         accel,
         transmit,
-        sinks,
+        &mut ws.sinks,
         &mut ws.occluded,
         &mut ws.scratch,
-        &mut stages,
+        stages,
     );
 
     // Later waves: the child queues, one kind at a time.
     let mut depth = 1;
     loop {
-        std::mem::swap(&mut ws.current, &mut sinks.next);
+        std::mem::swap(&mut ws.current, &mut ws.sinks.next);
         if ws
             .current
             .iter()
@@ -279,50 +395,35 @@ fn render_tile(
         {
             break;
         }
-        for (kind, queue) in ws.current.iter_mut() {
-            let Some(queue) = queue else { continue };
+        for kind in ChildKind::ALL {
+            let Some(queue) = &mut ws.current[kind] else {
+                continue;
+            };
             if queue.rays.is_empty() {
                 continue;
             }
             let t = Instant::now();
             trace_closest(accel, queue, &mut ws.hits, &mut ws.scratch);
-            *child_stage(&mut stages, kind).get_or_insert(0.0) += ms_since(t);
+            *child_stage(stages, kind).get_or_insert(0.0) += ms_since(t);
             let t = Instant::now();
-            shade_queue(&shader, queue, &ws.hits, depth, rays_per_pixel, sinks);
+            shade_queue(&cx.shader, queue, &ws.hits, depth, &mut ws.sinks);
             stages.shade += ms_since(t);
-            queue.clear();
+            peak = peak.max(ws.live_paths(false));
+            if let Some(queue) = &mut ws.current[kind] {
+                queue.clear();
+            }
         }
         trace_shadows(
             accel,
             transmit,
-            sinks,
+            &mut ws.sinks,
             &mut ws.occluded,
             &mut ws.scratch,
-            &mut stages,
+            stages,
         );
         depth += 1;
     }
-
-    // Filter the camera samples into pixels.
-    let mut pixels = vec![PixelSums::default(); ws.order.len()];
-    let mut nonfinite_samples = 0;
-    let (eye, rpp) = (plan.eye_rendered() as usize, rays_per_pixel as usize);
-    for (g, &at) in ws.order.iter().enumerate() {
-        pixels[at as usize] = resolve_pixel(
-            &plan,
-            &ws.offsets[g * eye..(g + 1) * eye],
-            &sinks.acc[g * rpp..(g + 1) * rpp],
-            &mut nonfinite_samples,
-        );
-    }
-    TileResult {
-        tile,
-        pixels,
-        rays: sinks.rays,
-        samples_drawn: sinks.drawn,
-        nonfinite_samples,
-        stages,
-    }
+    peak
 }
 
 /// The stage time of the queue of child rays of `kind`.
@@ -352,7 +453,6 @@ fn shade_queue(
     queue: &RayQueue,
     hits: &[Option<SceneHit>],
     depth: u32,
-    rays_per_pixel: u32,
     sinks: &mut Sinks,
 ) {
     let scene = shader.scene;
@@ -365,7 +465,7 @@ fn shade_queue(
         };
         let ray = &queue.rays[i];
         let si = SurfaceInteraction::new(scene, ray, hit);
-        let pixel = sinks.pixel_index[(slot / rays_per_pixel) as usize];
+        let pixel = sinks.slot_pixel[slot as usize];
         let out = &mut sinks.emitted;
         shader.shade_emit(
             ray.dir.normalize(),
