@@ -10,10 +10,12 @@
 mod camera;
 mod camera_override;
 mod checks;
+pub mod instance;
 mod light;
 pub mod load;
 mod material;
 mod motion;
+mod plane;
 pub mod procedural;
 
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
@@ -22,6 +24,8 @@ pub use checks::nothing_visible_warning;
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
 pub use motion::MotionSet;
+pub use instance::{Affine, Instance, InstanceSet, SurfacePoint};
+pub use plane::Plane;
 
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
@@ -288,9 +292,14 @@ pub struct Scene {
     pub camera_effects: CameraEffects,
     /// Moving geometry (empty for a static scene).
     pub motion: MotionSet,
+    /// Instanced objects and their placements (empty without `[[instance]]`).
+    pub instances: InstanceSet,
+    /// Infinite planes, outside [`bounds`](Self::bounds).
+    pub planes: Vec<Plane>,
     pub background: Vec3,
     pub ambient: Vec3,
     pub settings: RenderSettings,
+    /// Bounds of all bounded geometry (infinite planes are left out).
     pub bounds: Aabb,
     pub features: Features,
 }
@@ -305,7 +314,11 @@ impl Scene {
     }
 
     pub fn primitive_count(&self) -> usize {
-        self.mesh.len() + self.spheres.len() + self.motion.len()
+        self.mesh.len()
+            + self.spheres.len()
+            + self.motion.len()
+            + self.instances.instanced_triangles()
+            + self.planes.len()
     }
 }
 
@@ -319,6 +332,8 @@ pub struct SceneBuilder {
     pub camera: Option<Camera>,
     pub camera_effects: CameraEffects,
     pub motion: MotionSet,
+    pub instances: InstanceSet,
+    pub planes: Vec<Plane>,
     pub background: Vec3,
     pub ambient: Vec3,
     pub settings: RenderSettings,
@@ -487,6 +502,9 @@ impl SceneBuilder {
         if !self.motion.is_empty() {
             b = b.union(&self.motion.bounds(self.camera_effects.shutter));
         }
+        for ib in self.instances.world_bounds() {
+            b = b.union(&ib);
+        }
         b
     }
 
@@ -556,6 +574,13 @@ impl SceneBuilder {
                 .map_err(|e| Error::parameter("light", format!("light {i}: {e}")))?;
         }
         self.validate_motion(nmat)?;
+        self.instances
+            .validate(nmat)
+            .map_err(|e| Error::parameter("instance", e))?;
+        for (i, p) in self.planes.iter().enumerate() {
+            p.validate(nmat)
+                .map_err(|e| Error::parameter("plane", format!("plane {i}: {e}")))?;
+        }
         self.camera_effects
             .validate()
             .map_err(|e| Error::parameter("camera", e))?;
@@ -577,6 +602,8 @@ impl SceneBuilder {
                 || self.spheres.material.contains(&id)
                 || self.motion.mesh.material.contains(&id)
                 || self.motion.spheres.material.contains(&id)
+                || self.instances.uses_material(id)
+                || self.planes.iter().any(|p| p.material == id)
         };
         let mut features = Features {
             triangles: !self.mesh.is_empty(),
@@ -605,6 +632,8 @@ impl SceneBuilder {
         };
         features.triangles |= !self.motion.mesh.is_empty();
         features.spheres |= !self.motion.spheres.is_empty();
+        features.triangles |= !self.instances.is_empty();
+        features.shading_normals |= self.instances.has_shading_normals();
         for (i, m) in self.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -627,6 +656,8 @@ impl SceneBuilder {
             camera,
             camera_effects: self.camera_effects,
             motion: self.motion,
+            instances: self.instances,
+            planes: self.planes,
             background: self.background,
             ambient: self.ambient,
             settings: self.settings,
