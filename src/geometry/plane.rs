@@ -93,6 +93,7 @@ mod tests {
         };
         let mut hits = 0;
         let mut on_plane = 0;
+        let mut raw = 0;
         for _ in 0..20_000 {
             let o = p0 + Vec3::new(rnd(), rnd(), rnd()) * 1.0e3;
             let d = Vec3::new(rnd(), rnd(), rnd()) - Vec3::splat(0.001);
@@ -104,9 +105,12 @@ mod tests {
             let w = Vec3::new(rnd(), rnd(), rnd());
             let origin = offset_ray_origin(p, e, n, w);
             hits += intersect_plane(p0, n, &Ray::new(origin, w)).is_some() as u32;
-            // Without the offset the band test alone must hold too.
-            hits += intersect_plane(p0, n, &Ray::new(p, w)).is_some() as u32;
+            // Without the offset the projected point may truly lie off the plane (by
+            // up to its bound) and a ray towards the plane then rightly hits it: only
+            // count the offset rays.
+            raw += intersect_plane(p0, n, &Ray::new(p, w)).is_some() as u32;
         }
+        eprintln!("rays from the unoffset points that re-hit: {raw} of {on_plane}");
         assert!(on_plane > 5_000, "only {on_plane} rays reached the plane");
         assert_eq!(hits, 0);
     }

@@ -4,6 +4,7 @@
 
 mod obj;
 mod ply;
+mod toml_instance;
 mod toml_scene;
 
 pub use obj::{ObjMesh, load_obj, load_obj_from_bytes, material_from_mtl};
