@@ -238,7 +238,11 @@ impl InstanceAccel {
 
     /// Bytes of the bottom-level structures (one per object used).
     pub fn blas_memory_bytes(&self) -> usize {
-        self.blas.iter().flatten().map(|b| b.info().memory_bytes).sum()
+        self.blas
+            .iter()
+            .flatten()
+            .map(|b| b.info().memory_bytes)
+            .sum()
     }
 
     /// Bytes of the top level: nodes, leaf order, and per instance its object index

@@ -199,7 +199,10 @@ pub enum PrimRef {
     /// Index into `Scene::motion.spheres`.
     MovingSphere(u32),
     /// Triangle `prim` of the object placed by `Scene::instances.instances[instance]`.
-    Instance { instance: u32, prim: u32 },
+    Instance {
+        instance: u32,
+        prim: u32,
+    },
     /// Index into `Scene::planes` (infinite planes).
     Plane(u32),
 }

@@ -67,15 +67,27 @@ mod tests {
     fn axis_plane_hit_at_the_analytic_distance() {
         // y = 2 from (0, 5, 0) straight down: t = 3 exactly.
         let r = Ray::new(Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.0, -1.0, 0.0));
-        assert_eq!(intersect_plane(Vec3::new(7.0, 2.0, -3.0), Vec3::Y, &r), Some(3.0));
+        assert_eq!(
+            intersect_plane(Vec3::new(7.0, 2.0, -3.0), Vec3::Y, &r),
+            Some(3.0)
+        );
         // Pointing away, or ending before the plane: no hit.
         let up = Ray::new(r.origin, Vec3::Y);
-        assert_eq!(intersect_plane(Vec3::new(0.0, 2.0, 0.0), Vec3::Y, &up), None);
+        assert_eq!(
+            intersect_plane(Vec3::new(0.0, 2.0, 0.0), Vec3::Y, &up),
+            None
+        );
         let short = Ray::segment(r.origin, r.dir, 0.0, 3.0);
-        assert_eq!(intersect_plane(Vec3::new(0.0, 2.0, 0.0), Vec3::Y, &short), None);
+        assert_eq!(
+            intersect_plane(Vec3::new(0.0, 2.0, 0.0), Vec3::Y, &short),
+            None
+        );
         // Parallel: no hit.
         let flat = Ray::new(r.origin, Vec3::X);
-        assert_eq!(intersect_plane(Vec3::new(0.0, 2.0, 0.0), Vec3::Y, &flat), None);
+        assert_eq!(
+            intersect_plane(Vec3::new(0.0, 2.0, 0.0), Vec3::Y, &flat),
+            None
+        );
     }
 
     #[test]
@@ -138,6 +150,9 @@ mod tests {
             assert!(dist <= reach, "distance {dist} beyond the bound {reach}");
             worst = worst.max(dist / reach);
         }
-        assert!(worst > 0.0, "every projected point was exact: nothing was tested");
+        assert!(
+            worst > 0.0,
+            "every projected point was exact: nothing was tested"
+        );
     }
 }

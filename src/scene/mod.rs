@@ -22,10 +22,10 @@ pub mod procedural;
 pub use camera::{Camera, CameraEffects, CameraFrame, LensFrame};
 pub use camera_override::{CameraOverrides, Side, UpAxis, parse_vec3};
 pub use checks::nothing_visible_warning;
+pub use instance::{Affine, Instance, InstanceSet, SurfacePoint};
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
 pub use motion::MotionSet;
-pub use instance::{Affine, Instance, InstanceSet, SurfacePoint};
 pub use plane::Plane;
 
 use crate::error::{Error, Result};

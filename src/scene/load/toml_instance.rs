@@ -124,7 +124,12 @@ impl Objects {
         let anchor = def.matrix.as_ref().map_or(def.object.span(), |m| m.span());
         b.b.instances
             .add_instance(id, to_world, material)
-            .map_err(|e| cx.error(&anchor, format!("instance of `{}`: {e}", def.object.get_ref())))?;
+            .map_err(|e| {
+                cx.error(
+                    &anchor,
+                    format!("instance of `{}`: {e}", def.object.get_ref()),
+                )
+            })?;
         Ok(())
     }
 }
