@@ -20,18 +20,20 @@ impl SceneAccel {
             }
             r
         };
-        if let Some(inst) = &self.instances {
-            if let Some((i, h)) = inst.closest_hit(&clip(&best)) {
-                best = Some(SceneHit {
-                    t: h.t,
-                    prim: PrimRef::Instance {
-                        instance: i,
-                        prim: h.prim,
-                    },
-                    u: h.u,
-                    v: h.v,
-                });
-            }
+        if let Some((i, h)) = self
+            .instances
+            .as_ref()
+            .and_then(|inst| inst.closest_hit(&clip(&best)))
+        {
+            best = Some(SceneHit {
+                t: h.t,
+                prim: PrimRef::Instance {
+                    instance: i,
+                    prim: h.prim,
+                },
+                u: h.u,
+                v: h.v,
+            });
         }
         for (i, p) in self.planes.iter().enumerate() {
             if let Some(t) = intersect_plane(p.point, p.normal, &clip(&best)) {
