@@ -297,7 +297,7 @@ impl SceneAccel {
 
     /// The filtered query over the whole scene ([`Accel::filtered_hit`], same
     /// semantics): each structure in turn (triangles, spheres, moving triangles, moving
-    /// spheres), each searching only in front of the nearest candidate accepted so
+    /// spheres, instances, infinite planes), each searching only in front of the nearest candidate accepted so
     /// far; with `opts.any` the first accepted candidate ends the query.
     pub fn filtered_hit(
         &self,
