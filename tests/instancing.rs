@@ -211,6 +211,13 @@ fn instanced_scene_matches_the_flattened_one() {
             recursive::render(&inst, &ai, &opts),
             recursive::render(&flat, &af, &opts),
         );
+        // The wavefront integrator (ray queues, batch queries) renders the same bits
+        // as the recursive one through instances, as it does for flat meshes.
+        let wave = packet_render::integrator::wavefront::render(&inst, &ai, &opts);
+        assert!(
+            wave.film.pixels == ri.film.pixels,
+            "{kind}: wavefront differs"
+        );
         let mut worst = 0.0f32;
         let mut differing = 0;
         for (i, (p, q)) in ri.film.pixels.iter().zip(&rf.film.pixels).enumerate() {
