@@ -111,6 +111,12 @@ pub struct RenderReport {
 pub struct PrimitiveCounts {
     pub triangles: usize,
     pub spheres: usize,
+    /// Placed instances (`[[instance]]`, named meshes drawn in place) and the triangles
+    /// they draw (each object stored once).
+    pub instances: usize,
+    pub instanced_triangles: usize,
+    /// Infinite planes.
+    pub planes: usize,
     pub lights: usize,
     pub materials: usize,
 }
@@ -204,6 +210,9 @@ impl RenderJob {
             primitives: PrimitiveCounts {
                 triangles: scene.mesh.len(),
                 spheres: scene.spheres.len(),
+                instances: scene.instances.instances.len(),
+                instanced_triangles: scene.instances.instanced_triangles(),
+                planes: scene.planes.len(),
                 lights: scene.lights.len(),
                 materials: scene.materials.len(),
             },

@@ -8,8 +8,10 @@
 mod bruteforce;
 mod bvh2;
 mod bvhn;
+mod extras;
 pub mod filter;
 mod grid;
+mod instance;
 mod kdtree;
 mod moving;
 mod octree;
@@ -22,6 +24,7 @@ pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvhn::{Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, Width};
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
+pub use instance::InstanceAccel;
 pub use kdtree::{KdNode, KdTree, KdTreeOptions};
 pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};
 pub use octree::{Octree, OctreeNode, OctreeOptions};
@@ -196,6 +199,13 @@ pub enum PrimRef {
     MovingTriangle(u32),
     /// Index into `Scene::motion.spheres`.
     MovingSphere(u32),
+    /// Triangle `prim` of the object placed by `Scene::instances.instances[instance]`.
+    Instance {
+        instance: u32,
+        prim: u32,
+    },
+    /// Index into `Scene::planes` (infinite planes).
+    Plane(u32),
 }
 
 /// A closest hit in the whole scene.
@@ -225,6 +235,10 @@ pub struct SceneAccel {
     pub spheres: Option<Box<dyn Accel>>,
     /// Moving geometry (motion blur); `None` for a scene without it.
     pub moving: Option<MovingAccel>,
+    /// Instanced geometry (two levels); `None` for a scene without instances.
+    pub instances: Option<InstanceAccel>,
+    /// Infinite planes, tested against every ray (`extras.rs`).
+    pub planes: Vec<crate::scene::Plane>,
 }
 
 impl SceneAccel {
@@ -234,11 +248,14 @@ impl SceneAccel {
         let spheres =
             (!scene.spheres.is_empty()).then(|| kind.build(Spheres::from_set(&scene.spheres)));
         let moving = MovingAccel::build(&scene.motion, scene.camera_effects.shutter, kind);
+        let (instances, planes) = extras::build_extras(scene, kind);
         SceneAccel {
             kind,
             triangles,
             spheres,
             moving,
+            instances,
+            planes,
         }
     }
 
@@ -276,12 +293,12 @@ impl SceneAccel {
             );
             best = closer(best, ray, |r| m.closest_sphere(r), PrimRef::MovingSphere);
         }
-        best
+        self.closest_extra(ray, best)
     }
 
     /// The filtered query over the whole scene ([`Accel::filtered_hit`], same
     /// semantics): each structure in turn (triangles, spheres, moving triangles, moving
-    /// spheres), each searching only in front of the nearest candidate accepted so
+    /// spheres, instances, infinite planes), each searching only in front of the nearest candidate accepted so
     /// far; with `opts.any` the first accepted candidate ends the query.
     pub fn filtered_hit(
         &self,
@@ -324,11 +341,11 @@ impl SceneAccel {
             if let Some(h) = found {
                 best = Some(scene_hit(&h));
                 if opts.any {
-                    break;
+                    return best;
                 }
             }
         }
-        best
+        self.filtered_extra(ray, opts, filter, best).0
     }
 
     /// Every hit along the ray in the whole scene (back faces dropped with
@@ -345,10 +362,12 @@ impl SceneAccel {
             false
         });
         let key = |p: PrimRef| match p {
-            PrimRef::Triangle(i) => (0, i),
-            PrimRef::Sphere(i) => (1, i),
-            PrimRef::MovingTriangle(i) => (2, i),
-            PrimRef::MovingSphere(i) => (3, i),
+            PrimRef::Triangle(i) => (0, i, 0),
+            PrimRef::Sphere(i) => (1, i, 0),
+            PrimRef::MovingTriangle(i) => (2, i, 0),
+            PrimRef::MovingSphere(i) => (3, i, 0),
+            PrimRef::Instance { instance, prim } => (4, instance, prim),
+            PrimRef::Plane(i) => (5, i, 0),
         };
         hits.sort_by(|a, b| {
             a.hit
@@ -364,6 +383,7 @@ impl SceneAccel {
         self.triangles.as_ref().is_some_and(|a| a.any_hit(ray))
             || self.spheres.as_ref().is_some_and(|a| a.any_hit(ray))
             || self.moving.as_ref().is_some_and(|m| m.any_hit(ray))
+            || self.any_extra(ray)
     }
 
     /// Closest hits for a batch of rays, through each kind's batch entry point (BVH4:
@@ -417,6 +437,11 @@ impl SceneAccel {
                 *o = closer(best, r, |r| m.closest_sphere(r), PrimRef::MovingSphere);
             }
         }
+        if self.instances.is_some() || !self.planes.is_empty() {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                *o = self.closest_extra(r, *o);
+            }
+        }
     }
 
     /// Occlusion for a batch of rays: each kind's batch entry point over the rays no
@@ -453,6 +478,11 @@ impl SceneAccel {
                 *o = *o || m.any_hit(r);
             }
         }
+        if self.instances.is_some() || !self.planes.is_empty() {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                *o = *o || self.any_extra(r);
+            }
+        }
     }
 
     /// Build statistics of each structure present.
@@ -462,6 +492,7 @@ impl SceneAccel {
             .chain(self.spheres.iter())
             .map(|a| a.info())
             .chain(self.moving.iter().flat_map(|m| m.info()))
+            .chain(self.instances.iter().map(|i| i.info()))
             .collect()
     }
 }

@@ -4,6 +4,7 @@
 mod aabb;
 mod offset;
 pub mod piecewise;
+mod plane;
 mod ray;
 mod sphere;
 pub mod terminator;
@@ -12,6 +13,7 @@ pub mod warp;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
 pub use offset::{SPAWN_TO_ERROR, offset_ray_origin, orthonormal_basis, spawn_ray_to};
+pub use plane::{intersect_plane, plane_point};
 pub use ray::{LaneRays, Ray, RayPacket, RayQuery};
 pub use sphere::{intersect_sphere, sphere_point};
 pub(crate) use triangle::err as triangle_err;

@@ -81,6 +81,12 @@ impl SurfaceInteraction {
                 let center = motion.sphere_center(s, ray.time);
                 on_sphere(center, motion.spheres.radius[s], motion.spheres.material[s])
             }
+            // Instances and infinite planes: world-space surface with its error bound.
+            PrimRef::Instance { instance, prim } => scene
+                .instances
+                .surface(instance, prim, hit.u, hit.v)
+                .parts(),
+            PrimRef::Plane(i) => scene.planes[i as usize].surface(ray, hit.t).parts(),
         };
         // A degenerate triangle or a hit at a sphere's centre has no normal; facing the
         // ray keeps every later formula finite.

@@ -60,5 +60,7 @@ pub fn material_of(scene: &Scene, prim: PrimRef) -> u32 {
         PrimRef::Sphere(s) => scene.spheres.material[s as usize],
         PrimRef::MovingTriangle(t) => scene.motion.mesh.material[t as usize],
         PrimRef::MovingSphere(s) => scene.motion.spheres.material[s as usize],
+        PrimRef::Instance { instance, prim } => scene.instances.material(instance, prim),
+        PrimRef::Plane(p) => scene.planes[p as usize].material,
     }
 }

@@ -11,11 +11,13 @@ mod camera;
 mod camera_override;
 mod checks;
 mod environment;
+pub mod instance;
 mod light;
 pub mod limits;
 pub mod load;
 mod material;
 mod motion;
+mod plane;
 pub mod procedural;
 pub mod sky;
 
@@ -25,9 +27,11 @@ pub use checks::nothing_visible_warning;
 pub use environment::{
     Environment, EnvironmentSample, MAX_MAP_SIDE, direction_to_uv, uv_to_direction,
 };
+pub use instance::{Affine, Instance, InstanceSet, SurfacePoint};
 pub use light::{Light, LightSample};
 pub use material::{Checker, Material};
 pub use motion::MotionSet;
+pub use plane::Plane;
 
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
@@ -303,6 +307,10 @@ pub struct Scene {
     pub camera_effects: CameraEffects,
     /// Moving geometry (empty for a static scene).
     pub motion: MotionSet,
+    /// Instanced objects and their placements (empty without `[[instance]]`).
+    pub instances: InstanceSet,
+    /// Infinite planes, outside [`bounds`](Self::bounds).
+    pub planes: Vec<Plane>,
     /// Radiance of rays that miss everything when there is no `environment`: a
     /// backdrop that lights nothing.
     pub background: Vec3,
@@ -311,6 +319,7 @@ pub struct Scene {
     pub environment: Option<Arc<Environment>>,
     pub ambient: Vec3,
     pub settings: RenderSettings,
+    /// Bounds of all bounded geometry (infinite planes are left out).
     pub bounds: Aabb,
     pub features: Features,
 }
@@ -335,7 +344,11 @@ impl Scene {
     }
 
     pub fn primitive_count(&self) -> usize {
-        self.mesh.len() + self.spheres.len() + self.motion.len()
+        self.mesh.len()
+            + self.spheres.len()
+            + self.motion.len()
+            + self.instances.instanced_triangles()
+            + self.planes.len()
     }
 }
 
@@ -349,6 +362,8 @@ pub struct SceneBuilder {
     pub camera: Option<Camera>,
     pub camera_effects: CameraEffects,
     pub motion: MotionSet,
+    pub instances: InstanceSet,
+    pub planes: Vec<Plane>,
     pub background: Vec3,
     pub environment: Option<Arc<Environment>>,
     pub ambient: Vec3,
@@ -518,6 +533,9 @@ impl SceneBuilder {
         if !self.motion.is_empty() {
             b = b.union(&self.motion.bounds(self.camera_effects.shutter));
         }
+        for ib in self.instances.world_bounds() {
+            b = b.union(&ib);
+        }
         b
     }
 
@@ -587,6 +605,13 @@ impl SceneBuilder {
                 .map_err(|e| Error::parameter("light", format!("light {i}: {e}")))?;
         }
         self.validate_motion(nmat)?;
+        self.instances
+            .validate(nmat)
+            .map_err(|e| Error::parameter("instance", e))?;
+        for (i, p) in self.planes.iter().enumerate() {
+            p.validate(nmat)
+                .map_err(|e| Error::parameter("plane", format!("plane {i}: {e}")))?;
+        }
         self.camera_effects
             .validate()
             .map_err(|e| Error::parameter("camera", e))?;
@@ -608,6 +633,8 @@ impl SceneBuilder {
                 || self.spheres.material.contains(&id)
                 || self.motion.mesh.material.contains(&id)
                 || self.motion.spheres.material.contains(&id)
+                || self.instances.uses_material(id)
+                || self.planes.iter().any(|p| p.material == id)
         };
         let mut features = Features {
             triangles: !self.mesh.is_empty(),
@@ -637,6 +664,8 @@ impl SceneBuilder {
         };
         features.triangles |= !self.motion.mesh.is_empty();
         features.spheres |= !self.motion.spheres.is_empty();
+        features.triangles |= !self.instances.is_empty();
+        features.shading_normals |= self.instances.has_shading_normals();
         for (i, m) in self.materials.iter().enumerate() {
             if !used(i as u32) {
                 continue;
@@ -659,6 +688,8 @@ impl SceneBuilder {
             camera,
             camera_effects: self.camera_effects,
             motion: self.motion,
+            instances: self.instances,
+            planes: self.planes,
             background: self.background,
             environment: self.environment,
             ambient: self.ambient,

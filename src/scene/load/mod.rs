@@ -6,6 +6,7 @@ mod environment_map;
 mod obj;
 mod ply;
 mod toml_environment;
+mod toml_instance;
 mod toml_scene;
 
 pub use environment_map::read_environment_map;

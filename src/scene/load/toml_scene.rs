@@ -26,7 +26,7 @@ pub const MAX_SPHEREFLAKE_LEVEL: u32 = 6;
 /// Largest tessellated mesh accepted.
 pub const MAX_GENERATED_TRIANGLES: u64 = 50_000_000;
 
-type V3 = Spanned<[f32; 3]>;
+pub(super) type V3 = Spanned<[f32; 3]>;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -48,6 +48,8 @@ struct SceneFile {
     plane: Vec<PlaneDef>,
     #[serde(default)]
     mesh: Vec<MeshDef>,
+    #[serde(default)]
+    instance: Vec<super::toml_instance::InstanceDef>,
     #[serde(default)]
     generator: Vec<Spanned<GeneratorDef>>,
 }
@@ -161,20 +163,25 @@ struct QuadDef {
 struct PlaneDef {
     point: V3,
     normal: V3,
-    size: Spanned<f32>,
+    /// Half-extent of a finite square; without it the plane is infinite.
+    size: Option<Spanned<f32>>,
     material: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct MeshDef {
-    file: Spanned<String>,
+pub(super) struct MeshDef {
+    pub(super) file: Spanned<String>,
+    /// Makes the mesh an object that `[[instance]]` entries can place.
+    pub(super) name: Option<Spanned<String>>,
+    /// With `name`: the mesh is drawn only through its instances.
+    pub(super) instance_only: Option<Spanned<bool>>,
     material: Option<Spanned<String>>,
     translate: Option<V3>,
     scale: Option<Spanned<toml::Value>>,
     rotate_y: Option<Spanned<f32>>,
     rotate: Option<V3>,
-    velocity: Option<V3>,
+    pub(super) velocity: Option<V3>,
 }
 
 #[derive(Deserialize)]
@@ -209,22 +216,22 @@ pub fn parse_toml_scene(text: &str, path: &Path) -> Result<Scene> {
 
 /// The file being read, to turn spans into locations.
 #[derive(Clone, Copy)]
-struct Ctx<'a> {
-    path: &'a Path,
-    text: &'a str,
+pub(super) struct Ctx<'a> {
+    pub(super) path: &'a Path,
+    pub(super) text: &'a str,
 }
 
 impl Ctx<'_> {
-    fn error(&self, span: &Range<usize>, message: impl Into<String>) -> Error {
+    pub(super) fn error(&self, span: &Range<usize>, message: impl Into<String>) -> Error {
         let (line, column) = line_column(self.text, span.start);
         Error::input(self.path, line, column, message)
     }
 
-    fn at<T>(&self, v: &Spanned<T>, message: impl Into<String>) -> Error {
+    pub(super) fn at<T>(&self, v: &Spanned<T>, message: impl Into<String>) -> Error {
         self.error(&v.span(), message)
     }
 
-    fn vec3(&self, v: &V3, what: &str) -> Result<Vec3> {
+    pub(super) fn vec3(&self, v: &V3, what: &str) -> Result<Vec3> {
         let p = Vec3::from_array(*v.get_ref());
         if !p.is_finite() {
             return Err(self.at(v, format!("`{what}` must be three finite numbers, got {p}")));
@@ -268,9 +275,9 @@ impl Ctx<'_> {
     }
 }
 
-struct Builder<'a> {
-    cx: Ctx<'a>,
-    b: SceneBuilder,
+pub(super) struct Builder<'a> {
+    pub(super) cx: Ctx<'a>,
+    pub(super) b: SceneBuilder,
     material_ids: BTreeMap<String, u32>,
     default_material: Option<u32>,
 }
@@ -292,7 +299,7 @@ impl<'a> Builder<'a> {
     }
 
     /// The id of a named material; no name means the default grey diffuse material.
-    fn material(&mut self, name: &Option<Spanned<String>>) -> Result<u32> {
+    pub(super) fn material(&mut self, name: &Option<Spanned<String>>) -> Result<u32> {
         let Some(name) = name else {
             let b = &mut self.b;
             return Ok(*self
@@ -357,15 +364,33 @@ impl<'a> Builder<'a> {
         for p in &file.plane {
             let point = cx.vec3(&p.point, "point")?;
             let n = cx.direction(&p.normal, "normal")?.normalize();
-            let size = cx.positive(&p.size, "size")?;
             let m = self.material(&p.material)?;
+            let Some(size) = &p.size else {
+                self.b.planes.push(crate::scene::Plane {
+                    point,
+                    normal: n,
+                    material: m,
+                });
+                continue;
+            };
+            let size = cx.positive(size, "size")?;
             // A square of half-extent `size` around `point`, wound so e1 × e2 = n.
             let (t, bt) = tangent_frame(n);
             self.b
                 .add_quad(point - size * (t + bt), 2.0 * size * t, 2.0 * size * bt, m);
         }
+        let mut objects = super::toml_instance::Objects::default();
         for mesh in &file.mesh {
-            self.mesh(mesh)?;
+            match (&mesh.name, &mesh.instance_only) {
+                (Some(_), _) => objects.mesh(&mut self, mesh)?,
+                (None, Some(io)) => {
+                    return Err(cx.at(io, "`instance_only` needs a `name` on the same [[mesh]]"));
+                }
+                (None, None) => self.mesh(mesh)?,
+            }
+        }
+        for i in &file.instance {
+            objects.instance(&mut self, i)?;
         }
         for l in &file.light {
             let light = light(cx, l)?;
@@ -516,7 +541,7 @@ impl<'a> Builder<'a> {
         Ok(camera)
     }
 
-    fn mesh(&mut self, def: &MeshDef) -> Result<()> {
+    pub(super) fn mesh(&mut self, def: &MeshDef) -> Result<()> {
         let cx = self.cx;
         let dir = cx.path.parent().unwrap_or(Path::new(""));
         let resolved = dir.join(def.file.get_ref());
@@ -530,7 +555,7 @@ impl<'a> Builder<'a> {
                 ),
             ));
         }
-        let transform = mesh_transform(cx, def)?;
+        let transform = mesh_transform(cx, &def.placement())?;
         let material = def
             .material
             .as_ref()
@@ -964,8 +989,27 @@ fn reject_foreign_fields(
     Ok(())
 }
 
+/// The transform fields shared by `[[mesh]]` and `[[instance]]`.
+pub(super) struct Placement<'a> {
+    pub(super) translate: &'a Option<V3>,
+    pub(super) scale: &'a Option<Spanned<toml::Value>>,
+    pub(super) rotate_y: &'a Option<Spanned<f32>>,
+    pub(super) rotate: &'a Option<V3>,
+}
+
+impl MeshDef {
+    pub(super) fn placement(&self) -> Placement<'_> {
+        Placement {
+            translate: &self.translate,
+            scale: &self.scale,
+            rotate_y: &self.rotate_y,
+            rotate: &self.rotate,
+        }
+    }
+}
+
 /// `translate * rotate * scale`; rotations in degrees, applied about x, then y, then z.
-fn mesh_transform(cx: Ctx, def: &MeshDef) -> Result<Mat4> {
+pub(super) fn mesh_transform(cx: Ctx, def: &Placement) -> Result<Mat4> {
     let translate = def
         .translate
         .as_ref()
