@@ -9,6 +9,7 @@ pub mod region;
 pub mod sampling;
 pub mod shadow;
 pub mod sobol;
+pub mod texturing;
 pub mod wavefront;
 pub mod whitted;
 
