@@ -9,7 +9,7 @@
 //! let scene = scene::load::load_scene(std::path::Path::new("scenes/whitted.toml")).unwrap();
 //! let accel = accel::SceneAccel::build(&scene, accel::AccelKind::Bvh2);
 //! let opts = integrator::RenderOptions::from_scene(&scene);
-//! let out = integrator::whitted::render(&scene, &accel, &opts);
+//! let out = integrator::recursive::render(&scene, &accel, &opts);
 //! out.film.save(std::path::Path::new("out.png")).unwrap();
 //! ```
 

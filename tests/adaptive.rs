@@ -6,7 +6,7 @@
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::{Film, luminance};
 use packet_render::integrator::adaptive::{self, AdaptiveOptions, AdaptiveOutput};
-use packet_render::integrator::{RenderOptions, SamplerKind, whitted};
+use packet_render::integrator::{RenderOptions, SamplerKind, recursive};
 use packet_render::scene::Scene;
 use packet_render::scene::load::load_scene;
 use std::path::{Path, PathBuf};
@@ -86,7 +86,7 @@ fn adaptive_estimates_are_unbiased_pixel_by_pixel() {
     r.sampler = SamplerKind::Jittered;
     r.spp = 4096;
     r.seed = 9;
-    let reference = lum(&whitted::render(&scene, &accel, &r).film);
+    let reference = lum(&recursive::render(&scene, &accel, &r).film);
     let n = seeds as f64;
     let mut z2 = Vec::new();
     let mut constant = 0;

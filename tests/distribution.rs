@@ -7,14 +7,14 @@
 use glam::Vec3;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::{Film, luminance};
-use packet_render::integrator::{RenderOptions, RenderOutput, SamplerKind, whitted};
+use packet_render::integrator::{RenderOptions, RenderOutput, SamplerKind, recursive};
 use packet_render::scene::load::parse_toml_scene;
 use packet_render::scene::{Camera, CameraEffects, Light, Material, Scene, SceneBuilder};
 use std::path::Path;
 
 fn render(scene: &Scene, opts: &RenderOptions) -> RenderOutput {
     let accel = SceneAccel::build(scene, AccelKind::Bvh4);
-    let out = whitted::render(scene, &accel, opts);
+    let out = recursive::render(scene, &accel, opts);
     assert_eq!(out.nonfinite_samples, 0, "numeric failure in the render");
     out
 }

@@ -7,7 +7,9 @@ use glam::{DVec3, Vec3};
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::luminance;
 use packet_render::geometry::Ray;
-use packet_render::integrator::whitted::{self, dielectric};
+use packet_render::integrator::interaction::SurfaceInteraction;
+use packet_render::integrator::optics::dielectric;
+use packet_render::integrator::recursive;
 use packet_render::integrator::{RenderOptions, RenderOutput};
 use packet_render::scene::{Camera, Light, Material, Scene, SceneBuilder};
 use std::sync::Arc;
@@ -25,7 +27,7 @@ fn options(scene: &Scene, width: u32, height: u32) -> RenderOptions {
 
 fn render(scene: &Scene, opts: &RenderOptions) -> RenderOutput {
     let accel = SceneAccel::build(scene, AccelKind::BruteForce);
-    let out = whitted::render(scene, &accel, opts);
+    let out = recursive::render(scene, &accel, opts);
     assert_eq!(out.nonfinite_samples, 0, "numeric failure in the render");
     out
 }
@@ -623,7 +625,7 @@ fn nonfinite_samples_are_counted_and_black() {
     let scene = b.finish().unwrap();
     let opts = options(&scene, 24, 24);
     let accel = SceneAccel::build(&scene, AccelKind::BruteForce);
-    let out = whitted::render(&scene, &accel, &opts);
+    let out = recursive::render(&scene, &accel, &opts);
     assert!(out.nonfinite_samples > 0);
     assert!(out.film.pixels.iter().all(|p| p.is_finite()));
     // At 1 spp each non-finite sample is one black pixel; nothing else here is black.
@@ -908,7 +910,7 @@ fn terminator_shadowed_fraction() -> (usize, usize) {
             let Some(hit) = accel.closest_hit(&ray) else {
                 continue;
             };
-            let si = whitted::SurfaceInteraction::new(&scene, &ray, &hit);
+            let si = SurfaceInteraction::new(&scene, &ray, &hit);
             let cos = si.n_shading.dot(l);
             if cos <= 0.1 {
                 continue;

@@ -8,7 +8,7 @@ mod robust;
 use glam::Vec3;
 use packet_render::accel::{Accel, AccelKind, BruteForce, Spheres, Triangles};
 use packet_render::geometry::{Hit, Ray};
-use packet_render::integrator::whitted::{dielectric, reflect};
+use packet_render::integrator::optics::{dielectric, reflect};
 use robust::*;
 
 fn assert_all_agree(
@@ -485,7 +485,7 @@ fn renders_never_exceed_what_the_light_can_deliver() {
     for &kind in AccelKind::ALL {
         let accel = packet_render::accel::SceneAccel::build(&scene, kind);
         let opts = packet_render::integrator::RenderOptions::from_scene(&scene);
-        let out = packet_render::integrator::whitted::render(&scene, &accel, &opts);
+        let out = packet_render::integrator::recursive::render(&scene, &accel, &opts);
         assert_eq!(out.nonfinite_samples, 0);
         let max = out
             .film

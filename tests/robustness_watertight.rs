@@ -9,7 +9,7 @@ use common::Rng;
 use glam::Vec3;
 use packet_render::accel::{Accel, BruteForce, Triangles};
 use packet_render::geometry::Ray;
-use packet_render::integrator::whitted::{dielectric, reflect};
+use packet_render::integrator::optics::{dielectric, reflect};
 use robust::*;
 
 /// Rays from each interior point aimed exactly at every vertex, at every edge midpoint,

@@ -2,7 +2,8 @@
 //! default structure (BVH4) and matches the reference structure (BVH2) pixel for pixel.
 
 use packet_render::accel::{AccelKind, SceneAccel};
-use packet_render::integrator::{RenderOptions, whitted};
+use packet_render::integrator::camera_rays::SamplePlan;
+use packet_render::integrator::{RenderOptions, recursive};
 use packet_render::scene::load::load_scene;
 use std::path::Path;
 
@@ -24,8 +25,8 @@ fn every_shipped_scene_renders() {
             SceneAccel::build(&scene, AccelKind::Bvh4),
             SceneAccel::build(&scene, AccelKind::Bvh2),
         );
-        let fast = whitted::render(&scene, &bvh4, &opts);
-        let reference = whitted::render(&scene, &bvh2, &opts);
+        let fast = recursive::render(&scene, &bvh4, &opts);
+        let reference = recursive::render(&scene, &bvh2, &opts);
         let name = path.display();
         // Pixels may differ only where the camera ray hits two primitives at exactly the
         // same distance (a ray through an edge shared by two walls): either is right.
@@ -46,7 +47,7 @@ fn every_shipped_scene_renders() {
             );
         }
         assert_eq!(fast.nonfinite_samples, 0, "{name}");
-        let per_pixel = whitted::SamplePlan::new(&scene, &opts).camera_rays_per_pixel() as u64;
+        let per_pixel = SamplePlan::new(&scene, &opts).camera_rays_per_pixel() as u64;
         assert_eq!(fast.rays.camera, 32 * 24 * per_pixel, "{name}");
         let px = &fast.film.pixels;
         assert!(

@@ -4,7 +4,7 @@
 
 use packet_render::accel::{AccelKind, Primitives, SceneAccel, Triangles};
 use packet_render::geometry::RayQuery;
-use packet_render::integrator::{RenderOptions, wavefront, whitted};
+use packet_render::integrator::{RenderOptions, recursive, wavefront};
 use packet_render::scene::Scene;
 use packet_render::scene::load::load_scene;
 use std::path::{Path, PathBuf};
@@ -99,7 +99,7 @@ fn wavefront_images_equal_recursive_images_on_every_shipped_scene() {
                 .unwrap();
             let (reference, wave) = pool.install(|| {
                 (
-                    whitted::render(&scene, &accel, &opts),
+                    recursive::render(&scene, &accel, &opts),
                     wavefront::render(&scene, &accel, &opts),
                 )
             });

@@ -219,7 +219,7 @@ pub fn compare(
     if opts.reps < 1 {
         return Err(Error::parameter("reps", "at least 1 timed pass"));
     }
-    crate::integrator::validate_dimensions(opts.width, opts.height, 1, 0)?;
+    crate::scene::limits::validate_dimensions(opts.width, opts.height, 1, 0)?;
     let threads = rayon::current_num_threads();
     let mut rows = Vec::new();
     match input {

@@ -25,7 +25,7 @@ use crate::accel::{AccelKind, SceneAccel};
 use crate::error::{Error, Result};
 use crate::film::{Film, linear_to_srgb};
 use crate::integrator::adaptive::{self, AdaptiveOptions};
-use crate::integrator::{RenderOptions, SamplerKind, whitted};
+use crate::integrator::{RenderOptions, SamplerKind, recursive};
 use crate::plot::{Series, loglog_svg};
 use crate::scene::Scene;
 use std::io::Write;
@@ -176,7 +176,7 @@ pub fn render_counts(
     o.spp = eye;
     o.samples.shadow = shadow;
     o.validate()?;
-    let out = whitted::render(scene, accel, &o);
+    let out = recursive::render(scene, accel, &o);
     Ok((out.film, out.render_ms / 1e3, out.rays.total()))
 }
 

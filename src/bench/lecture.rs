@@ -10,7 +10,7 @@
 
 use crate::accel::{AccelKind, SceneAccel};
 use crate::error::{Error, Result};
-use crate::integrator::{RenderOptions, whitted};
+use crate::integrator::{RenderOptions, recursive};
 use crate::plot::{Series, loglog_svg};
 use crate::scene::{Light, Material, Scene, SceneBuilder, procedural};
 use glam::Vec3;
@@ -87,7 +87,7 @@ fn time_render(scene: &Scene, kind: AccelKind, reps: usize) -> (f64, f64) {
         let start = Instant::now();
         let accel = SceneAccel::build(scene, kind);
         let build = start.elapsed().as_secs_f64() * 1e3;
-        let out = whitted::render(scene, &accel, &opts);
+        let out = recursive::render(scene, &accel, &opts);
         if build + out.render_ms < best.0 + best.1 {
             best = (build, out.render_ms);
         }
@@ -97,7 +97,7 @@ fn time_render(scene: &Scene, kind: AccelKind, reps: usize) -> (f64, f64) {
 
 /// Runs the table; `report` gets each row as it is measured.
 pub fn run(opts: &LectureOptions, mut report: impl FnMut(&LectureRow)) -> Result<Vec<LectureRow>> {
-    crate::integrator::validate_dimensions(opts.width, opts.height, 1, 1)?;
+    crate::scene::limits::validate_dimensions(opts.width, opts.height, 1, 1)?;
     if opts.cap_seconds.is_nan() || opts.cap_seconds <= 0.0 {
         return Err(Error::parameter("cap-seconds", "must be positive"));
     }

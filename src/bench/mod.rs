@@ -722,7 +722,7 @@ pub fn run(
     if opts.reps < 1 {
         return Err(crate::Error::parameter("reps", "at least 1 timed pass"));
     }
-    crate::integrator::validate_dimensions(opts.width, opts.height, 1, 0)?;
+    crate::scene::limits::validate_dimensions(opts.width, opts.height, 1, 0)?;
     for m in &opts.modes {
         if !MODES.contains(&m.as_str()) {
             return Err(crate::Error::parameter(

@@ -7,6 +7,7 @@ mod ray;
 mod sphere;
 pub mod terminator;
 mod triangle;
+pub mod warp;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
 pub use offset::{SPAWN_TO_ERROR, offset_ray_origin, orthonormal_basis, spawn_ray_to};

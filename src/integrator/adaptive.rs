@@ -32,11 +32,12 @@
 //! passes run: before each pass its time is predicted from the last pass's seconds per
 //! sample, and it runs only if 1.5 times that ends before the limit.
 
-use super::{MAX_SPP, RenderOptions, SamplerKind, whitted};
+use super::{RenderOptions, SamplerKind, recursive};
 use crate::accel::SceneAccel;
 use crate::error::{Error, Result};
 use crate::film::{Film, PixelSums, linear_to_srgb};
 use crate::scene::Scene;
+use crate::scene::limits::MAX_SPP;
 use crate::stats::RayCounts;
 use glam::Vec3;
 use std::time::Instant;
@@ -228,7 +229,7 @@ pub fn render(
             .map(|p| (p, (coords[p].0, coords[p].1, counts[p]..target[p])))
             .collect();
         let list: Vec<_> = work.iter().map(|w| w.1.clone()).collect();
-        let (new, _, r) = whitted::render_pixels(scene, accel, &o, &list, Acc::of);
+        let (new, _, r) = recursive::render_pixels(scene, accel, &o, &list, Acc::of);
         *rays += r;
         let mut added = 0u64;
         for ((p, range), s) in work.iter().zip(&new) {
@@ -371,7 +372,7 @@ fn pilot_variance(
     let mut cost = vec![0.0f64; coords.len()];
     for i in 0..n {
         let list: Vec<_> = coords.iter().map(|&(x, y)| (x, y, i..i + 1)).collect();
-        let (one, c, r) = whitted::render_pixels(scene, accel, &p, &list, PixelSums::value);
+        let (one, c, r) = recursive::render_pixels(scene, accel, &p, &list, PixelSums::value);
         *rays += r;
         for (k, &c) in c.iter().enumerate() {
             cost[k] += c as f64 / n as f64;

@@ -4,7 +4,7 @@
 //! denoiser or compositor expects, written as extra EXR channels.
 
 use super::PixelBounds;
-use super::whitted::SurfaceInteraction;
+use super::interaction::SurfaceInteraction;
 use crate::accel::SceneAccel;
 use crate::film::exr::ExtraChannel;
 use crate::scene::Scene;

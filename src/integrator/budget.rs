@@ -2,7 +2,8 @@
 //! of sample counts, and the memory the integrator's per-tile buffers will take.
 //! Every check runs before any work and says what it computed and what the limit is.
 
-use super::whitted::{SamplePlan, TILE};
+use super::camera_rays::SamplePlan;
+use super::tiles::TILE;
 use super::{IntegratorKind, RenderOptions};
 use crate::accel::SceneHit;
 use crate::error::{Error, Result};

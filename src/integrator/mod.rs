@@ -1,82 +1,43 @@
-//! Integrators: how radiance is estimated per pixel. `whitted` is the recursive scalar
-//! reference renderer; `wavefront` renders the same images breadth first, tracing rays
-//! in batches from queues.
+//! Integrators: how radiance is estimated per pixel. [`recursive`] is the depth-first
+//! scalar reference renderer; [`wavefront`] renders the same images breadth first,
+//! tracing rays in batches from queues.
+//!
+//! Both are built from the same stages, one file each, in the order a sample meets
+//! them: [`camera_rays`] (ray generation), [`interaction`] (surface interactions),
+//! [`shader`] (materials, BRDFs, Fresnel via [`optics`], emitted shadow and child
+//! rays), [`path_keys`] (random streams keyed by path identity), [`pixel_filter`]
+//! (camera-ray radiance into filter sums) and [`tiles`] (tile scheduler and film
+//! assembly); the wavefront adds its [`queues`].
 
 pub mod adaptive;
 pub mod aov;
 pub mod budget;
+pub mod camera_rays;
+pub mod interaction;
+pub mod optics;
+pub mod path_keys;
+pub mod pixel_filter;
+pub mod queues;
+pub mod recursive;
 pub mod region;
 pub mod sampling;
+pub mod shader;
 pub mod shadow;
 pub mod sobol;
 pub mod texturing;
+pub mod tiles;
 pub mod wavefront;
-pub mod whitted;
 
 use crate::error::{Error, Result};
 use crate::film::Film;
-use crate::scene::{SampleCounts, Scene};
+use crate::scene::SampleCounts;
+use crate::scene::Scene;
+use crate::scene::limits::{validate_dimensions, validate_sample_counts};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes};
 pub use region::PixelBounds;
 pub use sampling::{FilterKind, SamplerKind};
 use std::ops::Range;
 use std::sync::Arc;
-
-/// Largest image side accepted (a 64k x 64k RGB f32 film is already 48 GiB).
-pub const MAX_IMAGE_SIDE: u32 = 65_536;
-/// Largest sample count per pixel accepted.
-pub const MAX_SPP: u32 = 1 << 16;
-/// Largest recursion depth accepted.
-pub const MAX_DEPTH: u32 = 64;
-/// Largest per-effect sample count (shadow, glossy, lens, time) accepted.
-pub const MAX_EFFECT_SAMPLES: u32 = 1024;
-
-/// Rejects per-effect sample counts outside `1..=MAX_EFFECT_SAMPLES`.
-pub fn validate_sample_counts(c: &SampleCounts) -> Result<()> {
-    for (name, n) in [
-        ("shadow", c.shadow),
-        ("glossy", c.glossy),
-        ("lens", c.lens),
-        ("time", c.time),
-    ] {
-        if n == 0 || n > MAX_EFFECT_SAMPLES {
-            return Err(Error::parameter(
-                "sample count",
-                format!("{name} = {n}: must be between 1 and {MAX_EFFECT_SAMPLES}"),
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Rejects absurd render parameters with a message saying what is allowed.
-pub fn validate_dimensions(width: u32, height: u32, spp: u32, max_depth: u32) -> Result<()> {
-    if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
-        return Err(Error::parameter(
-            "image size",
-            format!("{width}x{height}: width and height must be between 1 and {MAX_IMAGE_SIDE}"),
-        ));
-    }
-    if (width as u64) * (height as u64) > 1 << 30 {
-        return Err(Error::parameter(
-            "image size",
-            format!("{width}x{height} exceeds 2^30 pixels"),
-        ));
-    }
-    if spp == 0 || spp > MAX_SPP {
-        return Err(Error::parameter(
-            "spp",
-            format!("{spp}: samples per pixel must be between 1 and {MAX_SPP}"),
-        ));
-    }
-    if max_depth > MAX_DEPTH {
-        return Err(Error::parameter(
-            "max depth",
-            format!("{max_depth}: must be at most {MAX_DEPTH}"),
-        ));
-    }
-    Ok(())
-}
 
 /// Progress callback: `(tiles done, tiles total)`, called from worker threads as tiles
 /// finish (so in no particular order of tiles, but `done` only grows).
@@ -252,7 +213,7 @@ impl IntegratorKind {
         opts: &RenderOptions,
     ) -> RenderOutput {
         match self {
-            IntegratorKind::Whitted => whitted::render(scene, accel, opts),
+            IntegratorKind::Whitted => recursive::render(scene, accel, opts),
             IntegratorKind::Wavefront => wavefront::render(scene, accel, opts),
         }
     }

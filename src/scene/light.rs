@@ -1,5 +1,5 @@
+use crate::geometry::warp::concentric_disk;
 use crate::geometry::{gamma, sphere_point};
-use crate::integrator::sampling::concentric_disk;
 use glam::Vec3;
 use std::f32::consts::{PI, TAU};
 

@@ -11,6 +11,7 @@ mod camera;
 mod camera_override;
 mod checks;
 mod light;
+pub mod limits;
 pub mod load;
 mod material;
 mod motion;
@@ -621,8 +622,8 @@ impl SceneBuilder {
             .validate()
             .map_err(|e| Error::parameter("camera", e))?;
         let s = &self.settings;
-        crate::integrator::validate_dimensions(s.width, s.height, s.spp, s.max_depth)?;
-        crate::integrator::validate_sample_counts(&s.samples)?;
+        limits::validate_dimensions(s.width, s.height, s.spp, s.max_depth)?;
+        limits::validate_sample_counts(&s.samples)?;
 
         let bounds = self.bounds();
         let camera = match self.camera {

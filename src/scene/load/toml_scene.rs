@@ -13,7 +13,7 @@ use super::{
     add_obj_mesh, line_column, load_mesh_with, obj::utf8_or_located_error, print_warnings,
 };
 use crate::error::{Error, Result};
-use crate::integrator::{MAX_DEPTH, MAX_EFFECT_SAMPLES, MAX_IMAGE_SIDE, MAX_SPP};
+use crate::scene::limits::{MAX_DEPTH, MAX_EFFECT_SAMPLES, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh, whitted_room};
 use crate::scene::{Camera, CameraEffects, Checker, Light, Material, Scene, SceneBuilder};
 use crate::texture::{Encoding, Procedural, ProceduralKind, TextureCache, TextureRef, WrapMode};
