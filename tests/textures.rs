@@ -49,8 +49,14 @@ const QUAD_OBJ: &str = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
 #[test]
 fn obj_with_map_kd_loads_uvs_and_the_linearised_texture() {
     let dir = temp_dir("objmtl");
-    png(&dir, "kd.png", 2, 2, |x, y| [(100 * x + 50 * y) as u8, 7, 200, 255]);
-    write(&dir, "m.mtl", "newmtl tex\nKd 1 1 1\nmap_Kd -s 2 2 kd.png\n");
+    png(&dir, "kd.png", 2, 2, |x, y| {
+        [(100 * x + 50 * y) as u8, 7, 200, 255]
+    });
+    write(
+        &dir,
+        "m.mtl",
+        "newmtl tex\nKd 1 1 1\nmap_Kd -s 2 2 kd.png\n",
+    );
     let obj = write(&dir, "q.obj", QUAD_OBJ);
     let mesh = load_obj(&obj).unwrap();
     assert!(mesh.warnings.is_empty(), "{:?}", mesh.warnings);
@@ -125,7 +131,9 @@ fn corrupt_texture_is_an_error_naming_the_file_and_the_mtl_line() {
 fn windows_separators_in_map_names_resolve() {
     let dir = temp_dir("backslash");
     std::fs::create_dir_all(dir.join("textures")).unwrap();
-    png(&dir.join("textures"), "a.png", 1, 1, |_, _| [255, 0, 0, 255]);
+    png(&dir.join("textures"), "a.png", 1, 1, |_, _| {
+        [255, 0, 0, 255]
+    });
     write(&dir, "m.mtl", "newmtl tex\nmap_Kd textures\\a.png\n");
     let obj = write(&dir, "q.obj", QUAD_OBJ);
     let mesh = load_obj(&obj).unwrap();
@@ -161,16 +169,33 @@ fn toml_texture_errors_are_located() {
     let cases = [
         ("texture = \"missing.png\"", "not found"),
         ("texture = 3", "must be a file name or a table"),
-        ("texture = { procedural = \"plaid\" }", "unknown procedural `plaid`"),
-        ("texture = { procedural = \"checker\", size = 0 }", "`size` must be an integer"),
-        ("texture = { procedural = \"checker\", colour = 1 }", "unknown key `colour`"),
-        ("texture = { procedural = \"noise\" }\nwrap = \"tile\"", "unknown wrap `tile`"),
-        ("texture = { procedural = \"noise\" }\nuv_scale = [0, 1]", "`uv_scale` must be"),
+        (
+            "texture = { procedural = \"plaid\" }",
+            "unknown procedural `plaid`",
+        ),
+        (
+            "texture = { procedural = \"checker\", size = 0 }",
+            "`size` must be an integer",
+        ),
+        (
+            "texture = { procedural = \"checker\", colour = 1 }",
+            "unknown key `colour`",
+        ),
+        (
+            "texture = { procedural = \"noise\" }\nwrap = \"tile\"",
+            "unknown wrap `tile`",
+        ),
+        (
+            "texture = { procedural = \"noise\" }\nuv_scale = [0, 1]",
+            "`uv_scale` must be",
+        ),
         ("wrap = \"clamp\"", "the material has none"),
     ];
     for (body, want) in cases {
         let text = format!("[materials.m]\n{body}\n");
-        let e = parse_toml_scene(&text, &dir.join("s.toml")).unwrap_err().to_string();
+        let e = parse_toml_scene(&text, &dir.join("s.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(want), "{body}: {e}");
         assert!(e.contains("s.toml:"), "{body}: located: {e}");
     }
@@ -209,4 +234,190 @@ fn ply_texture_coordinates_are_read() {
             "{u} {v}"
         );
     }
+}
+
+// ---- renders -------------------------------------------------------------------
+
+const SIZE: u32 = 9;
+
+/// A camera 3 units in front of the plane z = 0 looking down -Z with a 20° field of
+/// view (the image spans x, y in ±0.53), a directional light shining straight down -Z,
+/// no ambient light, black background.
+const FRAME: &str = "background = [0, 0, 0]\nambient = [0, 0, 0]\n\
+    [camera]\neye = [0, 0, 3]\ntarget = [0, 0, 0]\nfov = 20\n\
+    [[light]]\ntype = \"directional\"\ndirection = [0, 0, -1]\nirradiance = [3, 3, 3]\n";
+
+/// A 2 x 2 quad at z = 0 (uv (0,0) at (-1,-1), (1,1) at (1,1)) of material `m`.
+const FRONT_QUAD: &str =
+    "[[quad]]\ncorner = [-1, -1, 0]\nedge1 = [2, 0, 0]\nedge2 = [0, 2, 0]\nmaterial = \"m\"\n";
+
+fn scene_in(dir: &Path, body: &str) -> Scene {
+    parse_toml_scene(&format!("{FRAME}{body}"), &dir.join("s.toml")).unwrap()
+}
+
+fn render_all(scene: &Scene, check: impl Fn(&str, &dyn Fn(u32, u32) -> Vec3)) {
+    for &integrator in IntegratorKind::ALL {
+        for &kind in AccelKind::ALL {
+            let mut o = RenderOptions::from_scene(scene);
+            o.width = SIZE;
+            o.height = SIZE;
+            o.spp = 1;
+            let accel = SceneAccel::build(scene, kind);
+            let out = integrator.render(scene, &accel, &o);
+            check(&format!("{integrator}/{kind}"), &|x, y| out.film.get(x, y));
+        }
+    }
+}
+
+fn render_one(scene: &Scene) -> Vec<Vec3> {
+    let mut o = RenderOptions::from_scene(scene);
+    o.width = SIZE;
+    o.height = SIZE;
+    o.spp = 1;
+    let accel = SceneAccel::build(scene, AccelKind::Bvh4);
+    let out = IntegratorKind::Whitted.render(scene, &accel, &o);
+    (0..SIZE * SIZE)
+        .map(|i| out.film.get(i % SIZE, i / SIZE))
+        .collect()
+}
+
+fn close(a: Vec3, b: Vec3, rel: f32) -> bool {
+    ((a - b).abs().max_element()) <= rel * b.abs().max_element()
+}
+
+/// Texture 4 x 4: columns 0-1 colour code A, columns 2-3 code B. On the quad, u < 0.375
+/// reads only A texels and u > 0.625 only B (bilinear reaches half a texel, 0.125, to
+/// either side of the column boundary at u = 0.5). Pixel columns 0-1 of the 9-wide
+/// image see u <= 0.27, columns 7-8 u >= 0.73, column 4 u = 0.5 (midway).
+#[test]
+fn textured_quad_shades_the_texel_colour_times_the_plain_shading() {
+    let dir = temp_dir("render-tex");
+    let (a, b) = ([200u8, 40, 90], [30u8, 180, 220]);
+    png(&dir, "t.png", 4, 4, |x, _| {
+        let c = if x < 2 { a } else { b };
+        [c[0], c[1], c[2], 255]
+    });
+    let la = Vec3::new(lin(a[0]), lin(a[1]), lin(a[2]));
+    let lb = Vec3::new(lin(b[0]), lin(b[1]), lin(b[2]));
+    let textured = scene_in(
+        &dir,
+        &format!("[materials.m]\ntexture = \"t.png\"\n{FRONT_QUAD}"),
+    );
+    let plain = |c: Vec3| {
+        render_one(&scene_in(
+            &dir,
+            &format!(
+                "[materials.m]\ndiffuse = [{}, {}, {}]\n{FRONT_QUAD}",
+                c.x, c.y, c.z
+            ),
+        ))
+    };
+    let (pa, pb, pm) = (plain(la), plain(lb), plain((la + lb) * 0.5));
+    assert!(
+        pa[0].min_element() > 0.01,
+        "the plain quad is lit: {}",
+        pa[0]
+    );
+    render_all(&textured, |name, px| {
+        for y in 0..SIZE {
+            let i = |x: u32| (y * SIZE + x) as usize;
+            // Tolerance 1e-6 relative: between equal texels bilinear weighting
+            // `a (1 - f) + a f` rounds up to 2 ulps (6e-8 each) away from `a`, and
+            // nothing else differs from the plain render.
+            for x in [0, 1] {
+                assert!(
+                    close(px(x, y), pa[i(x)], 1e-6),
+                    "{name} ({x},{y}): {} vs A {}",
+                    px(x, y),
+                    pa[i(x)]
+                );
+            }
+            for x in [7, 8] {
+                assert!(
+                    close(px(x, y), pb[i(x)], 1e-6),
+                    "{name} ({x},{y}): {} vs B {}",
+                    px(x, y),
+                    pb[i(x)]
+                );
+            }
+            // Midway between the A and B columns the mean. Tolerance 1e-5 relative:
+            // the hit's u carries the intersection's rounding (~1e-7), which moves
+            // the blend weight by 4 texels/unit times that, on a colour step of ~0.6.
+            assert!(
+                close(px(4, y), pm[i(4)], 1e-5),
+                "{name} (4,{y}): {} vs mean {}",
+                px(4, y),
+                pm[i(4)]
+            );
+        }
+    });
+
+    // The AOV albedo is the texel, not the material's plain colour.
+    let accel = SceneAccel::build(&textured, AccelKind::Bvh4);
+    let aovs = packet_render::integrator::aov::Aovs::render(
+        &textured,
+        &accel,
+        SIZE,
+        SIZE,
+        packet_render::integrator::PixelBounds::full(SIZE, SIZE),
+    );
+    assert!(
+        close(aovs.albedo[0], la, 1e-6),
+        "{} vs {la}",
+        aovs.albedo[0]
+    );
+    assert!(
+        close(aovs.albedo[8], lb, 1e-6),
+        "{} vs {lb}",
+        aovs.albedo[8]
+    );
+}
+
+/// A blue cut-out quad (mask: columns 0-1 alpha 0, columns 2-3 alpha 1) in front of a
+/// red quad, lit from the camera's side. Where the mask is a hole (u < 0.5: pixel
+/// columns 0-3) the image is exactly the red quad alone: the camera ray reaches it and
+/// so does its shadow ray, which crosses the cut-out plane through the same hole.
+/// Where the mask is solid (columns 5-8) it is exactly an opaque blue quad. Exact:
+/// the filtered query returns the same hit as the plain one, bit for bit, and a
+/// shadow ray through holes only is weighted by exactly 1.
+#[test]
+fn cutout_quad_lets_camera_and_shadow_rays_through_its_holes() {
+    let dir = temp_dir("render-cut");
+    png(&dir, "mask.png", 4, 4, |x, _| {
+        [255, 255, 255, if x < 2 { 0 } else { 255 }]
+    });
+    let red = "[materials.red]\ndiffuse = [0.8, 0.05, 0.05]\n\
+               [[quad]]\ncorner = [-2, -2, -1]\nedge1 = [4, 0, 0]\nedge2 = [0, 4, 0]\nmaterial = \"red\"\n";
+    let blue = "[materials.m]\ndiffuse = [0.05, 0.05, 0.8]\n";
+    let cut = scene_in(
+        &dir,
+        &format!("{red}{blue}alpha_texture = \"mask.png\"\nwrap = \"clamp\"\n{FRONT_QUAD}"),
+    );
+    let only_red = render_one(&scene_in(&dir, red));
+    let opaque = render_one(&scene_in(&dir, &format!("{red}{blue}{FRONT_QUAD}")));
+    assert!(
+        only_red[0].x > 0.01 && only_red[0].x > 4.0 * only_red[0].z,
+        "{}",
+        only_red[0]
+    );
+    render_all(&cut, |name, px| {
+        for y in 0..SIZE {
+            let i = |x: u32| (y * SIZE + x) as usize;
+            for x in 0..4 {
+                assert_eq!(
+                    px(x, y),
+                    only_red[i(x)],
+                    "{name} ({x},{y}): through the hole"
+                );
+            }
+            for x in 5..SIZE {
+                assert_eq!(px(x, y), opaque[i(x)], "{name} ({x},{y}): solid part");
+            }
+        }
+    });
+    // With transmitted shadows off (glass blocks), holes still pass shadow rays.
+    let mut off = cut.clone();
+    off.settings.transmitted_shadows = false;
+    let img = render_one(&off);
+    assert_eq!(img[0], only_red[0]);
 }

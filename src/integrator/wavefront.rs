@@ -198,7 +198,10 @@ fn render_tile(
     ws.camera.clear();
 
     // Shadow rays through glass (`shadow` module) need the scene to look up materials.
-    let transmit = shadow::transmits(scene, opts.transmitted_shadows).then_some(scene);
+    let transmit = shadow::transmits(scene, opts.transmitted_shadows)
+        .then_some((scene, opts.transmitted_shadows));
+    // Cut-out holes (`texturing`): hits in them are replaced by the solid hit behind.
+    let cutouts = super::texturing::has_cutouts(scene).then_some(scene);
 
     // Camera rays.
     let t = Instant::now();
@@ -228,7 +231,7 @@ fn render_tile(
 
     // Wave 0: camera rays.
     let t = Instant::now();
-    trace_closest(accel, &ws.camera, &mut ws.hits, &mut ws.scratch);
+    trace_closest(accel, cutouts, &ws.camera, &mut ws.hits, &mut ws.scratch);
     stages.trace += ms_since(t);
     let rays_per_pixel = plan.eye_rendered() * camera.rays_per_eye();
     let t = Instant::now();
@@ -261,7 +264,7 @@ fn render_tile(
                 continue;
             }
             let t = Instant::now();
-            trace_closest(accel, queue, &mut ws.hits, &mut ws.scratch);
+            trace_closest(accel, cutouts, queue, &mut ws.hits, &mut ws.scratch);
             *child_stage(&mut stages, kind).get_or_insert(0.0) += ms_since(t);
             let t = Instant::now();
             shade_queue(&shader, queue, &ws.hits, depth, rays_per_pixel, sinks);
@@ -313,6 +316,7 @@ fn child_stage(stages: &mut StageTimes, kind: ChildKind) -> &mut Option<f64> {
 
 fn trace_closest(
     accel: &SceneAccel,
+    cutouts: Option<&Scene>,
     queue: &RayQueue,
     hits: &mut Vec<Option<SceneHit>>,
     scratch: &mut BatchScratch,
@@ -320,6 +324,13 @@ fn trace_closest(
     hits.clear();
     hits.resize(queue.rays.len(), None);
     accel.closest_hit_batch(&queue.rays, hits, scratch);
+    if let Some(scene) = cutouts {
+        for (hit, ray) in hits.iter_mut().zip(&queue.rays) {
+            if let Some(h) = *hit {
+                *hit = super::texturing::solid_hit(scene, accel, ray, h).0;
+            }
+        }
+    }
 }
 
 /// Shades every ray of `queue` (at wave `depth`) with its hit, emitting into `sinks`.
@@ -379,7 +390,7 @@ fn shade_queue(
 /// transmission ([`shadow::transmittance`]), as the recursive integrator does.
 fn trace_shadows(
     accel: &SceneAccel,
-    transmit: Option<&Scene>,
+    transmit: Option<(&Scene, bool)>,
     sinks: &mut Sinks,
     occluded: &mut Vec<bool>,
     scratch: &mut BatchScratch,
@@ -407,9 +418,9 @@ fn trace_shadows(
         {
             if !blocked {
                 acc[slot as usize] += c;
-            } else if let Some(scene) = transmit {
+            } else if let Some((scene, through_glass)) = transmit {
                 sinks.rays.transmitted_shadow += 1;
-                let t = shadow::transmittance(scene, accel, ray);
+                let t = shadow::filtered_transmittance(scene, accel, ray, through_glass);
                 if t != Vec3::ZERO {
                     acc[slot as usize] += c * t;
                 }
