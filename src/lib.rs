@@ -25,5 +25,6 @@ pub mod progressive;
 pub mod scene;
 pub mod simd;
 pub mod stats;
+pub mod texture;
 
 pub use error::{Error, Result};

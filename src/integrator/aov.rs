@@ -17,7 +17,8 @@ pub struct Aovs {
     pub depth: Vec<f32>,
     /// Unit shading normal facing the camera; zero on a miss.
     pub normal: Vec<Vec3>,
-    /// The material's diffuse albedo at the hit (checker patterns included); zero on a
+    /// The material's diffuse albedo at the hit (checker patterns and image textures
+    /// included; cut-out holes skipped); zero on a
     /// miss.
     pub albedo: Vec<Vec3>,
 }
@@ -34,10 +35,18 @@ impl Aovs {
     ) -> Aovs {
         let frame = scene.camera_frame(width, height);
         let mut out = Aovs::default();
+        let cutouts = super::texturing::has_cutouts(scene);
         for y in region.y0..region.y1 {
             for x in region.x0..region.x1 {
                 let ray = frame.ray(x as f32 + 0.5, y as f32 + 0.5);
-                match accel.closest_hit(&ray) {
+                let hit = accel.closest_hit(&ray).and_then(|h| {
+                    if cutouts {
+                        super::texturing::solid_hit(scene, accel, &ray, h).0
+                    } else {
+                        Some(h)
+                    }
+                });
+                match hit {
                     Some(hit) => {
                         let si = SurfaceInteraction::new(scene, &ray, &hit);
                         let m = &scene.materials[si.material as usize];
@@ -49,8 +58,8 @@ impl Aovs {
                         } else {
                             -si.n_geometric
                         };
-                        out.albedo
-                            .push(m.albedo_on_surface(si.p, si.p_error, outward));
+                        let (albedo, _) = m.colours_on_surface(si.p, si.p_error, outward, si.uv);
+                        out.albedo.push(albedo);
                     }
                     None => {
                         out.depth.push(f32::INFINITY);

@@ -33,6 +33,8 @@ pub struct SurfaceInteraction {
     /// horizon but below the flat facet. `None` elsewhere (shadow rays leave from `p`,
     /// and a light below the geometric surface contributes nothing).
     pub p_shadow: Option<Vec3>,
+    /// Texture coordinates at the hit ([`super::texturing::hit_uv`]).
+    pub uv: glam::Vec2,
 }
 
 impl SurfaceInteraction {
@@ -114,6 +116,7 @@ impl SurfaceInteraction {
             material,
             front_face,
             p_shadow,
+            uv: super::texturing::hit_uv(scene, ray, hit),
         }
     }
 }

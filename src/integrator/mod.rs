@@ -26,6 +26,7 @@ pub mod sampling;
 pub mod shader;
 pub mod shadow;
 pub mod sobol;
+pub mod texturing;
 pub mod tiles;
 pub mod wavefront;
 

@@ -39,7 +39,7 @@ use super::interaction::SurfaceInteraction;
 use super::pixel_filter::resolve_pixel;
 use super::shader::{Emitted, Shader};
 use super::tiles::{Tile, TileResult, render_tiles};
-use super::{RenderOptions, RenderOutput, shadow};
+use super::{RenderOptions, RenderOutput, shadow, texturing};
 use crate::accel::SceneAccel;
 use crate::film::PixelSums;
 use crate::geometry::Ray;
@@ -65,6 +65,12 @@ struct Tracer<'a> {
     accel: &'a SceneAccel,
     /// Shadow rays blocked by glass are traced again for its transmission.
     transmits: bool,
+    /// Glass passes shadow rays (the transmitted-shadows setting); cut-out holes
+    /// always do.
+    through_glass: bool,
+    /// The scene has cut-out materials: camera and child rays skip their holes
+    /// (`texturing`).
+    cutouts: bool,
     rays: RayCounts,
     drawn: EffectSamplesDrawn,
     /// What each depth of the current path emitted, reused so that shading never
@@ -173,6 +179,8 @@ impl Tracer<'_> {
             shader: Shader::new(scene, opts, plan),
             accel,
             transmits: shadow::transmits(scene, opts.transmitted_shadows),
+            through_glass: opts.transmitted_shadows,
+            cutouts: texturing::has_cutouts(scene),
             rays: RayCounts::default(),
             drawn: EffectSamplesDrawn::default(),
             emitted: std::mem::take(&mut ws.emitted),
@@ -206,9 +214,16 @@ impl Tracer<'_> {
     /// the product of the weights from the camera to this ray, for the contribution
     /// cutoff.
     fn radiance(&mut self, ray: &Ray, depth: u32, throughput: Vec3, pixel: u64, path: u64) -> Vec3 {
-        let Some(hit) = self.accel.closest_hit(ray) else {
+        let Some(mut hit) = self.accel.closest_hit(ray) else {
             return self.shader.scene.miss_radiance(ray.dir);
         };
+        if self.cutouts {
+            // A hit in a cut-out's hole: the nearest solid one behind it.
+            match texturing::solid_hit(self.shader.scene, self.accel, ray, hit).0 {
+                Some(h) => hit = h,
+                None => return self.shader.scene.miss_radiance(ray.dir),
+            }
+        }
         let si = SurfaceInteraction::new(self.shader.scene, ray, &hit);
         let d = depth as usize;
         if self.emitted.len() <= d {
@@ -234,7 +249,12 @@ impl Tracer<'_> {
             } else if self.transmits {
                 // Blocked, but perhaps only by glass (`shadow` module).
                 self.rays.transmitted_shadow += 1;
-                let t = shadow::transmittance(self.shader.scene, self.accel, &s.ray);
+                let t = shadow::filtered_transmittance(
+                    self.shader.scene,
+                    self.accel,
+                    &s.ray,
+                    self.through_glass,
+                );
                 if t != Vec3::ZERO {
                     l += s.contribution * t;
                 }

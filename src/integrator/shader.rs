@@ -129,13 +129,15 @@ impl Shader<'_> {
             } else {
                 -si.n_geometric
             };
-            let albedo = m.albedo_on_surface(si.p, si.p_error, outward);
+            // Image textures multiply the colours at the hit's uv (`texture`).
+            let (albedo, specular) = m.colours_on_surface(si.p, si.p_error, outward, si.uv);
             out.local += scene.ambient * albedo;
             self.direct(
                 -d,
                 time,
                 si,
                 albedo,
+                specular,
                 depth,
                 &mut stream,
                 pixel,
@@ -312,6 +314,7 @@ impl Shader<'_> {
         time: f32,
         si: &SurfaceInteraction,
         albedo: Vec3,
+        specular: Vec3,
         depth: u32,
         stream: &mut Option<PixelRng>,
         pixel: u64,
@@ -335,9 +338,9 @@ impl Shader<'_> {
                 return None;
             }
             let mut f = albedo * (FRAC_1_PI * cos_s);
-            if m.specular != Vec3::ZERO {
+            if specular != Vec3::ZERO {
                 let h = (wi + wo).normalize_or_zero();
-                f += m.specular * h.dot(si.n_shading).max(0.0).powf(m.shininess);
+                f += specular * h.dot(si.n_shading).max(0.0).powf(m.shininess);
             }
             Some(f)
         };

@@ -22,21 +22,42 @@
 //! mode: an opaque surface ends it). Those re-traced rays are counted in
 //! `RayCounts::transmitted_shadow`. Both integrators call [`transmittance`] on the
 //! same rays, so they compute the same factors.
+//!
+//! Cut-outs (`integrator::texturing`) use the same second pass: a shadow ray blocked
+//! in a scene with a cut-out material is traced again, and a candidate in a hole is
+//! rejected without attenuation. That holds also with transmitted shadows off (glass
+//! then blocks, holes still do not).
 
 use crate::accel::{PrimRef, QueryOptions, SceneAccel};
 use crate::geometry::Ray;
 use crate::scene::Scene;
 use glam::Vec3;
 
-/// Whether shadow rays of this render need the transmitted-shadow query.
+/// Whether shadow rays of this render need the second, filtered query: glass with
+/// transmitted shadows `enabled`, or any cut-out material.
 pub fn transmits(scene: &Scene, enabled: bool) -> bool {
-    enabled && scene.materials.iter().any(|m| m.is_transmissive())
+    (enabled && scene.materials.iter().any(|m| m.is_transmissive()))
+        || super::texturing::has_cutouts(scene)
 }
 
 /// The fraction of light that reaches the end of `ray` through the scene: the product
-/// of the `transmission` of every transmissive surface on the way, or zero when an
-/// opaque surface (or a product of exactly zero) is met.
+/// of the `transmission` of every transmissive surface on the way (when `through_glass`,
+/// the transmitted-shadows setting; else glass blocks), or zero when an opaque surface
+/// (or a product of exactly zero) is met. Holes of cut-out materials let the ray
+/// through unchanged.
 pub fn transmittance(scene: &Scene, accel: &SceneAccel, ray: &Ray) -> Vec3 {
+    filtered_transmittance(scene, accel, ray, true)
+}
+
+/// [`transmittance`] with glass passing light only when `through_glass` (the
+/// transmitted-shadows setting): what a render with cut-outs needs even when
+/// transmitted shadows are off.
+pub fn filtered_transmittance(
+    scene: &Scene,
+    accel: &SceneAccel,
+    ray: &Ray,
+    through_glass: bool,
+) -> Vec3 {
     let mut t = Vec3::ONE;
     let opts = QueryOptions {
         cull_back_faces: false,
@@ -44,7 +65,10 @@ pub fn transmittance(scene: &Scene, accel: &SceneAccel, ray: &Ray) -> Vec3 {
     };
     let blocked = accel.filtered_hit(ray, opts, &mut |c| {
         let m = &scene.materials[material_of(scene, c.hit.prim) as usize];
-        if !m.is_transmissive() {
+        if m.has_cutout() && super::texturing::is_hole(scene, ray, &c.hit) {
+            return false;
+        }
+        if !(through_glass && m.is_transmissive()) {
             return true;
         }
         t *= m.transmission;

@@ -231,7 +231,9 @@ struct WaveContext<'a> {
     shader: Shader<'a>,
     accel: &'a SceneAccel,
     /// Shadow rays through glass (`shadow` module) need the scene to look up materials.
-    transmit: Option<&'a Scene>,
+    transmit: Option<(&'a Scene, bool)>,
+    /// Cut-out holes (`texturing`): hits in them are replaced by the solid hit behind.
+    cutouts: Option<&'a Scene>,
 }
 
 fn render_tile(
@@ -247,7 +249,9 @@ fn render_tile(
     let cx = WaveContext {
         shader: Shader::new(scene, opts, plan),
         accel,
-        transmit: shadow::transmits(scene, opts.transmitted_shadows).then_some(scene),
+        transmit: shadow::transmits(scene, opts.transmitted_shadows)
+            .then_some((scene, opts.transmitted_shadows)),
+        cutouts: super::texturing::has_cutouts(scene).then_some(scene),
     };
     let mut stages = StageTimes {
         shadow: pipeline.shadow.then_some(0.0),
@@ -365,10 +369,10 @@ fn render_tile(
 /// radiance of each camera sample in `ws.sinks.acc`. Returns the most paths the queues
 /// held at once.
 fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u64 {
-    let (accel, transmit) = (cx.accel, cx.transmit);
+    let (accel, transmit, cutouts) = (cx.accel, cx.transmit, cx.cutouts);
     // Wave 0: camera rays.
     let t = Instant::now();
-    trace_closest(accel, &ws.camera, &mut ws.hits, &mut ws.scratch);
+    trace_closest(accel, cutouts, &ws.camera, &mut ws.hits, &mut ws.scratch);
     stages.trace += ms_since(t);
     let t = Instant::now();
     shade_queue(&cx.shader, &ws.camera, &ws.hits, 0, &mut ws.sinks);
@@ -403,7 +407,7 @@ fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u
                 continue;
             }
             let t = Instant::now();
-            trace_closest(accel, queue, &mut ws.hits, &mut ws.scratch);
+            trace_closest(accel, cutouts, queue, &mut ws.hits, &mut ws.scratch);
             *child_stage(stages, kind).get_or_insert(0.0) += ms_since(t);
             let t = Instant::now();
             shade_queue(&cx.shader, queue, &ws.hits, depth, &mut ws.sinks);
@@ -438,6 +442,7 @@ fn child_stage(stages: &mut StageTimes, kind: ChildKind) -> &mut Option<f64> {
 
 fn trace_closest(
     accel: &SceneAccel,
+    cutouts: Option<&Scene>,
     queue: &RayQueue,
     hits: &mut Vec<Option<SceneHit>>,
     scratch: &mut BatchScratch,
@@ -445,6 +450,13 @@ fn trace_closest(
     hits.clear();
     hits.resize(queue.rays.len(), None);
     accel.closest_hit_batch(&queue.rays, hits, scratch);
+    if let Some(scene) = cutouts {
+        for (hit, ray) in hits.iter_mut().zip(&queue.rays) {
+            if let Some(h) = *hit {
+                *hit = super::texturing::solid_hit(scene, accel, ray, h).0;
+            }
+        }
+    }
 }
 
 /// Shades every ray of `queue` (at wave `depth`) with its hit, emitting into `sinks`.
@@ -503,7 +515,7 @@ fn shade_queue(
 /// transmission ([`shadow::transmittance`]), as the recursive integrator does.
 fn trace_shadows(
     accel: &SceneAccel,
-    transmit: Option<&Scene>,
+    transmit: Option<(&Scene, bool)>,
     sinks: &mut Sinks,
     occluded: &mut Vec<bool>,
     scratch: &mut BatchScratch,
@@ -531,9 +543,9 @@ fn trace_shadows(
         {
             if !blocked {
                 acc[slot as usize] += c;
-            } else if let Some(scene) = transmit {
+            } else if let Some((scene, through_glass)) = transmit {
                 sinks.rays.transmitted_shadow += 1;
-                let t = shadow::transmittance(scene, accel, ray);
+                let t = shadow::filtered_transmittance(scene, accel, ray, through_glass);
                 if t != Vec3::ZERO {
                     acc[slot as usize] += c * t;
                 }

@@ -1,10 +1,11 @@
-use glam::Vec3;
+use crate::texture::MaterialTextures;
+use glam::{Vec2, Vec3};
 
 /// A material as a sum of lobes, each weighted by an RGB coefficient; a material uses
 /// the lobes whose weight is non-zero, and the scene's [`Features`](super::Features)
 /// record which lobes any material uses.
 ///
-/// - diffuse (Lambert), optionally modulated by a checkerboard;
+/// - diffuse (Lambert), optionally modulated by a checkerboard or an image texture;
 /// - specular highlight (Blinn-Phong, exponent `shininess`) for direct light;
 /// - `mirror`: perfect specular reflection without Fresnel (a metal);
 /// - `transmission` with `ior`: a dielectric (glass): reflection and refraction weighted
@@ -27,6 +28,8 @@ pub struct Material {
     pub glossy: Vec3,
     pub gloss_exponent: f32,
     pub translucency_exponent: f32,
+    /// Image textures over the surface's `uv` (diffuse, specular, cut-out).
+    pub textures: MaterialTextures,
 }
 
 /// How far inside the surface, beyond the hit point's own error bound and relative to
@@ -61,6 +64,7 @@ impl Default for Material {
             glossy: Vec3::ZERO,
             gloss_exponent: 100.0,
             translucency_exponent: 0.0,
+            textures: MaterialTextures::default(),
         }
     }
 }
@@ -139,6 +143,32 @@ impl Material {
         // twice: the lookup point lies beyond the box on the inside.
         let inset = 2.0 * outward.abs().dot(p_error) + CHECKER_INSET * p.abs().max_element();
         self.albedo_at(p - outward * inset)
+    }
+
+    /// Diffuse albedo and specular colour at a hit: [`albedo_on_surface`]
+    /// (Self::albedo_on_surface), then each multiplied by its texture at `uv` if the
+    /// material has one (the MTL rule: `map_Kd` times `Kd`).
+    pub fn colours_on_surface(
+        &self,
+        p: Vec3,
+        p_error: Vec3,
+        outward: Vec3,
+        uv: Vec2,
+    ) -> (Vec3, Vec3) {
+        let mut albedo = self.albedo_on_surface(p, p_error, outward);
+        let mut specular = self.specular;
+        if let Some(t) = &self.textures.diffuse {
+            albedo *= t.rgb(uv);
+        }
+        if let Some(t) = &self.textures.specular {
+            specular *= t.rgb(uv);
+        }
+        (albedo, specular)
+    }
+
+    /// Whether the material has a cut-out (alpha) map.
+    pub fn has_cutout(&self) -> bool {
+        self.textures.alpha.is_some()
     }
 
     pub fn validate(&self) -> Result<(), String> {

@@ -35,7 +35,7 @@ pub use plane::Plane;
 
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
 /// Triangle mesh, structure-of-arrays. All meshes of a scene are merged into one.
@@ -48,6 +48,10 @@ pub struct TriangleMesh {
     pub nxs: Vec<f32>,
     pub nys: Vec<f32>,
     pub nzs: Vec<f32>,
+    /// Optional per-vertex texture coordinates (both empty, or as long as `xs`; OBJ
+    /// `vt`, PLY `u v`/`s t`; quads and planes get their corners' `(0, 0)..(1, 1)`).
+    pub us: Vec<f32>,
+    pub vs: Vec<f32>,
     /// Vertex indices of each triangle's corners.
     pub i0: Vec<u32>,
     pub i1: Vec<u32>,
@@ -87,6 +91,21 @@ impl TriangleMesh {
 
     pub fn has_normals(&self) -> bool {
         !self.nxs.is_empty()
+    }
+
+    pub fn has_uvs(&self) -> bool {
+        !self.us.is_empty()
+    }
+
+    /// Texture coordinates at barycentrics `(u, v)` of triangle `t`, interpolated as
+    /// positions are (`(1 - u - v) uv0 + u uv1 + v uv2`); zero for a mesh without them.
+    #[inline]
+    pub fn uv_at(&self, t: usize, u: f32, v: f32) -> Vec2 {
+        if !self.has_uvs() {
+            return Vec2::ZERO;
+        }
+        let c = |i: u32| Vec2::new(self.us[i as usize], self.vs[i as usize]);
+        (1.0 - u - v) * c(self.i0[t]) + u * c(self.i1[t]) + v * c(self.i2[t])
     }
 
     /// Unit geometric normal `normalize((v1 - v0) × (v2 - v0))`; zero for a degenerate triangle.
@@ -471,8 +490,19 @@ impl SceneBuilder {
         let b = self.add_vertex(corner + e1);
         let c = self.add_vertex(corner + e1 + e2);
         let d = self.add_vertex(corner + e2);
+        self.set_uvs(a, &[Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y]);
         self.add_triangle_indices(a, b, c, material);
         self.add_triangle_indices(a, c, d, material);
+    }
+
+    /// Gives vertices `first..first + uvs.len()` (just added) texture coordinates;
+    /// vertices before them without any get `(0, 0)`.
+    pub fn set_uvs(&mut self, first: u32, uvs: &[Vec2]) {
+        let m = &mut self.mesh;
+        m.us.resize(first as usize, 0.0);
+        m.vs.resize(first as usize, 0.0);
+        m.us.extend(uvs.iter().map(|t| t.x));
+        m.vs.extend(uvs.iter().map(|t| t.y));
     }
 
     /// Appends an indexed mesh. `normals` is either empty or one per position; a mesh
@@ -485,7 +515,23 @@ impl SceneBuilder {
         indices: &[[u32; 3]],
         material: u32,
     ) {
+        self.add_mesh_with_uvs(positions, normals, &[], indices, material);
+    }
+
+    /// [`add_mesh`](Self::add_mesh) with texture coordinates: `uvs` is empty or one
+    /// per position.
+    pub fn add_mesh_with_uvs(
+        &mut self,
+        positions: &[Vec3],
+        normals: &[Vec3],
+        uvs: &[Vec2],
+        indices: &[[u32; 3]],
+        material: u32,
+    ) {
         let base = self.mesh.xs.len();
+        if !uvs.is_empty() {
+            self.set_uvs(base as u32, uvs);
+        }
         let had = self.mesh.has_normals();
         let want = !normals.is_empty();
         if want && !had {
@@ -564,6 +610,21 @@ impl SceneBuilder {
         }
         if self.mesh.has_normals() && self.mesh.nxs.len() != self.mesh.xs.len() {
             return bad("normal count differs from vertex count".into());
+        }
+        // Likewise texture coordinates: vertices added after the last ones with
+        // coordinates read (0, 0).
+        if self.mesh.has_uvs() {
+            let len = self.mesh.xs.len();
+            if self.mesh.us.len() > len || self.mesh.vs.len() != self.mesh.us.len() {
+                return bad("texture coordinate count differs from vertex count".into());
+            }
+            self.mesh.us.resize(len, 0.0);
+            self.mesh.vs.resize(len, 0.0);
+        }
+        if let Some(i) = (0..self.mesh.us.len())
+            .find(|&i| !(self.mesh.us[i].is_finite() && self.mesh.vs[i].is_finite()))
+        {
+            return bad(format!("texture coordinate {i} is not finite"));
         }
         for t in 0..self.mesh.len() {
             for idx in [self.mesh.i0[t], self.mesh.i1[t], self.mesh.i2[t]] {
@@ -674,7 +735,7 @@ impl SceneBuilder {
             features.specular |= m.specular != Vec3::ZERO;
             features.mirror |= m.mirror != Vec3::ZERO;
             features.glass |= m.is_transmissive();
-            features.textures |= m.checker.is_some();
+            features.textures |= m.checker.is_some() || !m.textures.is_empty();
             features.emission |= m.emission != Vec3::ZERO;
             features.glossy |= m.is_glossy();
             features.translucency |= m.is_translucent();

@@ -80,6 +80,15 @@ impl MotionSet {
             m.nys.resize(len, 0.0);
             m.nzs.resize(len, 0.0);
         }
+        // Texture coordinates: kept when either side has them, (0, 0) where missing.
+        if m.has_uvs() || mesh.has_uvs() {
+            m.us.resize(base as usize, 0.0);
+            m.vs.resize(base as usize, 0.0);
+            m.us.extend_from_slice(&mesh.us);
+            m.vs.extend_from_slice(&mesh.vs);
+            m.us.resize(m.xs.len(), 0.0);
+            m.vs.resize(m.xs.len(), 0.0);
+        }
         m.i0.extend(mesh.i0.iter().map(|i| i + base));
         m.i1.extend(mesh.i1.iter().map(|i| i + base));
         m.i2.extend(mesh.i2.iter().map(|i| i + base));

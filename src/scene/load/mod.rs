@@ -3,6 +3,7 @@
 //! scene goes through [`SceneBuilder::finish`] last.
 
 mod environment_map;
+mod mtl_maps;
 mod obj;
 mod ply;
 mod toml_environment;
@@ -10,12 +11,16 @@ mod toml_instance;
 mod toml_scene;
 
 pub use environment_map::read_environment_map;
-pub use obj::{ObjMesh, load_obj, load_obj_from_bytes, material_from_mtl};
+pub use obj::{
+    ObjMesh, load_obj, load_obj_from_bytes, load_obj_from_bytes_with, load_obj_with,
+    material_from_mtl,
+};
 pub use ply::{PlyMesh, load_ply, load_ply_from_bytes};
 pub use toml_scene::{load_toml_scene, parse_toml_scene};
 
 use super::{Camera, Light, Scene, SceneBuilder};
 use crate::error::{Error, Result};
+use crate::texture::TextureCache;
 use glam::{Mat4, Vec3};
 use std::path::Path;
 
@@ -41,13 +46,18 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
 /// Loads a mesh file by extension: `.ply` through [`load_ply`] (its vertex colours are
 /// dropped), anything else as OBJ through [`load_obj`].
 pub fn load_mesh(path: &Path) -> Result<ObjMesh> {
+    load_mesh_with(path, &mut TextureCache::new())
+}
+
+/// [`load_mesh`] sharing a texture cache with the rest of a scene.
+pub fn load_mesh_with(path: &Path, textures: &mut TextureCache) -> Result<ObjMesh> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("ply") => load_ply(path).map(|p| p.mesh),
-        _ => load_obj(path),
+        _ => load_obj_with(path, textures),
     }
 }
 
@@ -105,7 +115,13 @@ pub fn add_obj_mesh(
     } else {
         mesh.indices.clone()
     };
-    b.add_mesh(&positions, &normals, &indices, material.unwrap_or(0));
+    b.add_mesh_with_uvs(
+        &positions,
+        &normals,
+        &mesh.texcoords,
+        &indices,
+        material.unwrap_or(0),
+    );
     if material.is_none() {
         let ids: Vec<u32> = mesh
             .materials

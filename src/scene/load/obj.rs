@@ -7,9 +7,11 @@
 //! name an element defined above them, with the error located at the OBJ line. Only
 //! input that passed the scan is handed to tobj, from the same buffer.
 
+use super::mtl_maps::{MtlMap, MtlMapKind, attach_maps};
 use crate::error::{Error, Result};
 use crate::scene::Material;
-use glam::Vec3;
+use crate::texture::TextureCache;
+use glam::{Vec2, Vec3};
 use std::cell::RefCell;
 use std::io::Cursor;
 use std::path::Path;
@@ -21,6 +23,9 @@ pub struct ObjMesh {
     /// Per-vertex normals from `vn` records: empty, or one per position (zero where a
     /// part of the file had none, meaning "use the geometric normal").
     pub normals: Vec<Vec3>,
+    /// Per-vertex texture coordinates from `vt` records: empty, or one per position
+    /// ((0, 0) where a part of the file had none).
+    pub texcoords: Vec<glam::Vec2>,
     pub indices: Vec<[u32; 3]>,
     /// Per triangle, an index into `materials`.
     pub material_ids: Vec<u32>,
@@ -39,20 +44,36 @@ impl ObjMesh {
 /// Loads an OBJ file and the MTL libraries it names. Polygons are split as fans
 /// `(0, i, i + 1)`; points and lines are ignored.
 pub fn load_obj(path: &Path) -> Result<ObjMesh> {
+    load_obj_with(path, &mut TextureCache::new())
+}
+
+/// [`load_obj`] sharing a texture cache with the other meshes of a scene: the
+/// textures the MTL files name (`map_Kd`, `map_Ks`, `map_d`) are decoded once per file.
+pub fn load_obj_with(path: &Path, textures: &mut TextureCache) -> Result<ObjMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    load_obj_from_bytes(&bytes, path)
+    load_obj_from_bytes_with(&bytes, path, textures)
 }
 
 /// Parses OBJ data already in memory, as [`load_obj`] does after reading the file:
 /// `path` names it in error messages, and MTL libraries are looked up beside it. The
 /// entry point of the `obj` fuzz target.
 pub fn load_obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh> {
+    load_obj_from_bytes_with(bytes, path, &mut TextureCache::new())
+}
+
+/// [`load_obj_from_bytes`] with a shared texture cache ([`load_obj_with`]).
+pub fn load_obj_from_bytes_with(
+    bytes: &[u8],
+    path: &Path,
+    textures: &mut TextureCache,
+) -> Result<ObjMesh> {
     let text = utf8_or_located_error(path, bytes)?;
     prescan_obj(path, text)?;
 
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let warnings = RefCell::new(Vec::new());
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
+    let maps: RefCell<Vec<MtlMap>> = RefCell::new(Vec::new());
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
@@ -62,7 +83,10 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh> {
     let loaded = tobj::load_obj_buf(&mut Cursor::new(text.as_bytes()), &options, |mtl_name| {
         let mtl_path = dir.join(mtl_name);
         match load_mtl_checked(&mtl_path) {
-            Ok(r) => r,
+            Ok((r, m)) => {
+                maps.borrow_mut().extend(m);
+                r
+            }
             Err(MtlProblem::Missing(msg)) => {
                 warnings.borrow_mut().push(msg);
                 Err(tobj::LoadError::OpenFileFailed)
@@ -89,10 +113,20 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh> {
         materials: tobj_materials.iter().map(material_from_mtl).collect(),
         ..Default::default()
     };
+    attach_maps(
+        &mut mesh.materials,
+        &maps.into_inner(),
+        textures,
+        &mut warnings,
+    )?;
     let mut default_id = None;
     let any_normals = models
         .iter()
         .any(|m| !m.mesh.normals.is_empty() && m.mesh.normals.len() == m.mesh.positions.len());
+    let has_uvs = |m: &tobj::Mesh| m.texcoords.len() / 2 == m.positions.len() / 3;
+    let any_uvs = models
+        .iter()
+        .any(|m| !m.mesh.texcoords.is_empty() && has_uvs(&m.mesh));
     for model in &models {
         let m = &model.mesh;
         let base = mesh.positions.len();
@@ -113,6 +147,14 @@ pub fn load_obj_from_bytes(bytes: &[u8], path: &Path) -> Result<ObjMesh> {
                 );
             } else {
                 mesh.normals.resize(mesh.positions.len(), Vec3::ZERO);
+            }
+        }
+        if any_uvs {
+            if has_uvs(m) {
+                mesh.texcoords
+                    .extend(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])));
+            } else {
+                mesh.texcoords.resize(mesh.positions.len(), Vec2::ZERO);
             }
         }
         let material = match m.material_id {
@@ -239,7 +281,11 @@ enum MtlProblem {
 /// Reads an MTL file, checks the records we use (colours: 1 or 3 finite numbers;
 /// scalars: one finite number; `illum` 0..=10), expands grey colours `Kd g` to `Kd g g g`
 /// (tobj panics on fewer than three) and hands the text to tobj.
-fn load_mtl_checked(path: &Path) -> std::result::Result<tobj::MTLLoadResult, MtlProblem> {
+/// The texture map records (`map_Kd`, `map_Ks`, `map_d`, bump maps) are collected
+/// with their lines for [`attach_maps`], which tobj cannot locate.
+fn load_mtl_checked(
+    path: &Path,
+) -> std::result::Result<(tobj::MTLLoadResult, Vec<MtlMap>), MtlProblem> {
     let bytes = std::fs::read(path).map_err(|e| {
         MtlProblem::Missing(format!(
             "{}: {e}; using the default material",
@@ -248,6 +294,8 @@ fn load_mtl_checked(path: &Path) -> std::result::Result<tobj::MTLLoadResult, Mtl
     })?;
     let text = utf8_or_located_error(path, &bytes).map_err(MtlProblem::Malformed)?;
     let mut fixed = String::with_capacity(text.len() + 64);
+    let mut maps = Vec::new();
+    let mut current: Option<String> = None;
     for (i, line) in text.lines().enumerate() {
         let bad =
             |col: usize, msg: String| MtlProblem::Malformed(Error::input(path, i + 1, col, msg));
@@ -308,12 +356,20 @@ fn load_mtl_checked(path: &Path) -> std::result::Result<tobj::MTLLoadResult, Mtl
             "newmtl" if args.is_empty() => {
                 return Err(bad(col, "expected a material name after `newmtl`".into()));
             }
-            _ => {}
+            "newmtl" => current = Some(args.join(" ")),
+            _ => {
+                if let Some(kind) = MtlMapKind::from_key(key) {
+                    let rest = trimmed[key.len()..].trim();
+                    let map = MtlMap::parse(path, i + 1, col, key, kind, current.clone(), rest)
+                        .map_err(MtlProblem::Malformed)?;
+                    maps.push(map);
+                }
+            }
         }
         fixed.push_str(line);
         fixed.push('\n');
     }
-    Ok(tobj::load_mtl_buf(&mut Cursor::new(fixed.as_bytes())))
+    Ok((tobj::load_mtl_buf(&mut Cursor::new(fixed.as_bytes())), maps))
 }
 
 fn parse_all(args: &[&str]) -> Option<Vec<f32>> {

@@ -26,7 +26,8 @@ pub struct PlyMesh {
 }
 
 /// Loads a PLY file (ASCII or binary). Vertex normals (`nx ny nz`) are kept when all
-/// three properties are present.
+/// three properties are present, texture coordinates when `u v`, `s t` or
+/// `texture_u texture_v` are.
 pub fn load_ply(path: &Path) -> Result<PlyMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     load_ply_from_bytes(&bytes, path)
@@ -90,6 +91,11 @@ pub fn load_ply_from_bytes(bytes: &[u8], path: &Path) -> Result<PlyMesh> {
     }
     let with_normals = has("nx") && has("ny") && has("nz");
     let with_colors = has("red") && has("green") && has("blue");
+    // Texture coordinates under the names in use: `u v` (Blender, Meshlab), `s t`,
+    // `texture_u texture_v` (VCGlib).
+    let uv_names = [("u", "v"), ("s", "t"), ("texture_u", "texture_v")]
+        .into_iter()
+        .find(|(a, b)| has(a) && has(b));
 
     let mut out = PlyMesh::default();
     let mesh = &mut out.mesh;
@@ -109,6 +115,9 @@ pub fn load_ply_from_bytes(bytes: &[u8], path: &Path) -> Result<PlyMesh> {
         if with_normals {
             mesh.normals
                 .push(triple("nx", "ny", "nz")?.normalize_or_zero());
+        }
+        if let Some((un, vn)) = uv_names {
+            mesh.texcoords.push(glam::Vec2::new(get(un)?, get(vn)?));
         }
         if with_colors {
             let channel = |name: &str| -> Result<f32> {

@@ -9,11 +9,14 @@
 //! here rather than serde enums: serde's internally tagged enums buffer their content
 //! and would lose the spans.
 
-use super::{add_obj_mesh, line_column, load_mesh, obj::utf8_or_located_error, print_warnings};
+use super::{
+    add_obj_mesh, line_column, load_mesh_with, obj::utf8_or_located_error, print_warnings,
+};
 use crate::error::{Error, Result};
 use crate::scene::limits::{MAX_DEPTH, MAX_EFFECT_SAMPLES, MAX_IMAGE_SIDE, MAX_SPP};
 use crate::scene::procedural::{sphereflake, sphereflake_count, tessellated_mesh, whitted_room};
 use crate::scene::{Camera, CameraEffects, Checker, Light, Material, Scene, SceneBuilder};
+use crate::texture::{Encoding, Procedural, ProceduralKind, TextureCache, TextureRef, WrapMode};
 use glam::{Mat3, Mat4, Vec3};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -110,6 +113,12 @@ struct MaterialDef {
     glossy: Option<V3>,
     gloss_exponent: Option<Spanned<f32>>,
     translucency_exponent: Option<Spanned<f32>>,
+    /// A file name or `{ procedural = ..., ... }` (see `texture_ref`).
+    texture: Option<Spanned<toml::Value>>,
+    specular_texture: Option<Spanned<toml::Value>>,
+    alpha_texture: Option<Spanned<toml::Value>>,
+    wrap: Option<Spanned<String>>,
+    uv_scale: Option<Spanned<[f32; 2]>>,
 }
 
 #[derive(Deserialize)]
@@ -278,6 +287,8 @@ impl Ctx<'_> {
 pub(super) struct Builder<'a> {
     pub(super) cx: Ctx<'a>,
     pub(super) b: SceneBuilder,
+    /// Every texture of the scene (TOML materials and the meshes' MTL files).
+    textures: TextureCache,
     material_ids: BTreeMap<String, u32>,
     default_material: Option<u32>,
 }
@@ -286,13 +297,15 @@ impl<'a> Builder<'a> {
     fn new(cx: Ctx<'a>, defs: &BTreeMap<String, MaterialDef>) -> Result<Self> {
         let mut b = SceneBuilder::new();
         let mut material_ids = BTreeMap::new();
+        let mut textures = TextureCache::new();
         for (name, def) in defs {
-            let m = material(cx, name, def)?;
+            let m = material(cx, name, def, &mut textures)?;
             material_ids.insert(name.clone(), b.add_material(m));
         }
         Ok(Builder {
             cx,
             b,
+            textures,
             material_ids,
             default_material: None,
         })
@@ -561,7 +574,7 @@ impl<'a> Builder<'a> {
             .as_ref()
             .map(|_| self.material(&def.material))
             .transpose()?;
-        let mesh = load_mesh(&resolved)?;
+        let mesh = load_mesh_with(&resolved, &mut self.textures)?;
         print_warnings(&mesh.warnings);
         // Finite vertices can overflow under a large scale or translation; say which
         // mesh entry did it rather than leave it to the scene-wide check.
@@ -662,7 +675,12 @@ impl<'a> Builder<'a> {
     }
 }
 
-fn material(cx: Ctx, name: &str, def: &MaterialDef) -> Result<Material> {
+fn material(
+    cx: Ctx,
+    name: &str,
+    def: &MaterialDef,
+    textures: &mut TextureCache,
+) -> Result<Material> {
     let mut m = match &def.preset {
         None => Material::diffuse(name, Vec3::splat(0.8)),
         Some(p) => {
@@ -728,7 +746,170 @@ fn material(cx: Ctx, name: &str, def: &MaterialDef) -> Result<Material> {
                 .unwrap_or(1.0),
         });
     }
+    material_textures(cx, def, textures, &mut m)?;
     Ok(m)
+}
+
+/// `texture`, `specular_texture`, `alpha_texture`, with `wrap` and `uv_scale` for all
+/// three. A colour texture replaces the default colour of its lobe by 1 (white) unless
+/// the lobe's colour is given, which it then multiplies.
+fn material_textures(
+    cx: Ctx,
+    def: &MaterialDef,
+    cache: &mut TextureCache,
+    m: &mut Material,
+) -> Result<()> {
+    let wrap = match &def.wrap {
+        None => WrapMode::Repeat,
+        Some(w) => WrapMode::parse(w.get_ref()).ok_or_else(|| {
+            cx.at(
+                w,
+                format!(
+                    "unknown wrap `{}`; expected one of: repeat, clamp, mirror",
+                    w.get_ref()
+                ),
+            )
+        })?,
+    };
+    let scale = match &def.uv_scale {
+        None => glam::Vec2::ONE,
+        Some(s) => {
+            let v = glam::Vec2::from_array(*s.get_ref());
+            if !(v.is_finite() && v.x != 0.0 && v.y != 0.0) {
+                return Err(cx.at(
+                    s,
+                    format!("`uv_scale` must be two finite non-zero numbers, got {v}"),
+                ));
+            }
+            v
+        }
+    };
+    let mut load =
+        |v: &Option<Spanned<toml::Value>>, what: &str, encoding| -> Result<Option<TextureRef>> {
+            let Some(v) = v else { return Ok(None) };
+            let texture = texture_value(cx, v, what, encoding, cache)?;
+            Ok(Some(TextureRef {
+                texture,
+                wrap,
+                scale,
+                offset: glam::Vec2::ZERO,
+            }))
+        };
+    m.textures.diffuse = load(&def.texture, "texture", Encoding::Srgb)?;
+    m.textures.specular = load(&def.specular_texture, "specular_texture", Encoding::Srgb)?;
+    m.textures.alpha = load(&def.alpha_texture, "alpha_texture", Encoding::Linear)?;
+    if m.textures.diffuse.is_some() && def.diffuse.is_none() {
+        m.diffuse = Vec3::ONE;
+    }
+    if m.textures.specular.is_some() && def.specular.is_none() {
+        m.specular = Vec3::ONE;
+    }
+    if m.textures.is_empty() && (def.wrap.is_some() || def.uv_scale.is_some()) {
+        let at = def
+            .wrap
+            .as_ref()
+            .map(|w| w.span())
+            .or(def.uv_scale.as_ref().map(|s| s.span()));
+        return Err(cx.error(
+            &at.unwrap_or(0..0),
+            "`wrap` and `uv_scale` apply to textures: the material has none",
+        ));
+    }
+    Ok(())
+}
+
+/// A texture value: a file name (relative to the scene file; PNG, JPEG, TGA, HDR,
+/// EXR) or a procedural description
+/// `{ procedural = "checker"|"bricks"|"noise", size, cells, a, b, seed }`.
+fn texture_value(
+    cx: Ctx,
+    v: &Spanned<toml::Value>,
+    what: &str,
+    encoding: Encoding,
+    cache: &mut TextureCache,
+) -> Result<std::sync::Arc<crate::texture::Texture>> {
+    match v.get_ref() {
+        toml::Value::String(file) => {
+            let dir = cx.path.parent().unwrap_or(Path::new(""));
+            let resolved = dir.join(file);
+            if !resolved.is_file() {
+                return Err(cx.at(
+                    v,
+                    format!(
+                        "`{what}` file `{file}` not found (resolved to {})",
+                        resolved.display()
+                    ),
+                ));
+            }
+            cache
+                .get(&resolved, encoding)
+                .map_err(|e| cx.at(v, format!("`{what}`: {e}")))
+        }
+        toml::Value::Table(t) => {
+            let p = procedural(t).map_err(|msg| cx.at(v, format!("`{what}`: {msg}")))?;
+            Ok(cache.insert_generated(p.key(), || p.render()))
+        }
+        other => Err(cx.at(
+            v,
+            format!(
+                "`{what}` must be a file name or a table {{ procedural = \"checker\", ... }}, got a {}",
+                other.type_str()
+            ),
+        )),
+    }
+}
+
+/// Largest side of a procedural texture.
+pub const MAX_PROCEDURAL_SIZE: u32 = 4096;
+
+fn procedural(t: &toml::Table) -> std::result::Result<Procedural, String> {
+    const KEYS: [&str; 6] = ["procedural", "size", "cells", "a", "b", "seed"];
+    if let Some(k) = t.keys().find(|k| !KEYS.contains(&k.as_str())) {
+        return Err(format!("unknown key `{k}`; expected: {}", KEYS.join(", ")));
+    }
+    let kind = match t.get("procedural") {
+        Some(toml::Value::String(s)) => ProceduralKind::parse(s).ok_or_else(|| {
+            format!("unknown procedural `{s}`; expected one of: checker, bricks, noise")
+        })?,
+        _ => return Err("needs `procedural = \"checker\"|\"bricks\"|\"noise\"`".into()),
+    };
+    let int = |k: &str, default: i64, lo: i64, hi: i64| -> std::result::Result<u32, String> {
+        match t.get(k) {
+            None => Ok(default as u32),
+            Some(toml::Value::Integer(i)) if (lo..=hi).contains(i) => Ok(*i as u32),
+            Some(v) => Err(format!("`{k}` must be an integer in {lo}..={hi}, got {v}")),
+        }
+    };
+    let colour = |k: &str, default: Vec3| -> std::result::Result<Vec3, String> {
+        let Some(v) = t.get(k) else {
+            return Ok(default);
+        };
+        let nums: Option<Vec<f32>> = v.as_array().and_then(|a| {
+            a.iter()
+                .map(|x| {
+                    x.as_float()
+                        .or(x.as_integer().map(|i| i as f64))
+                        .map(|f| f as f32)
+                })
+                .collect()
+        });
+        match nums.as_deref() {
+            Some([r, g, b]) if [r, g, b].iter().all(|x| x.is_finite() && **x >= 0.0) => {
+                Ok(Vec3::new(*r, *g, *b))
+            }
+            _ => Err(format!(
+                "`{k}` must be three finite non-negative numbers, got {v}"
+            )),
+        }
+    };
+    Ok(Procedural {
+        kind,
+        size: int("size", 256, 1, MAX_PROCEDURAL_SIZE as i64)?,
+        cells: int("cells", 8, 1, MAX_PROCEDURAL_SIZE as i64)?,
+        a: colour("a", Vec3::splat(0.8))?,
+        b: colour("b", Vec3::splat(0.2))?,
+        seed: int("seed", 0, 0, u32::MAX as i64)?,
+    })
 }
 
 fn light(cx: Ctx, l: &Spanned<LightDef>) -> Result<Light> {
