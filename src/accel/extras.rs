@@ -13,13 +13,7 @@ use crate::scene::Plane;
 impl SceneAccel {
     /// `best`, or a nearer hit on an instance or a plane.
     pub(super) fn closest_extra(&self, ray: &Ray, mut best: Option<SceneHit>) -> Option<SceneHit> {
-        let clip = |best: &Option<SceneHit>| {
-            let mut r = *ray;
-            if let Some(b) = best {
-                r.tmax = b.t;
-            }
-            r
-        };
+        let clip = |best: &Option<SceneHit>| clipped(ray, best);
         if let Some((i, h)) = self
             .instances
             .as_ref()
@@ -66,13 +60,7 @@ impl SceneAccel {
         filter: &mut dyn FnMut(&SceneCandidate) -> bool,
         mut best: Option<SceneHit>,
     ) -> (Option<SceneHit>, bool) {
-        let clip = |best: &Option<SceneHit>| {
-            let mut r = *ray;
-            if let Some(b) = best {
-                r.tmax = b.t;
-            }
-            r
-        };
+        let clip = |best: &Option<SceneHit>| clipped(ray, best);
         if let Some(inst) = &self.instances {
             let scene_hit = |i: u32, h: &crate::geometry::Hit| SceneHit {
                 t: h.t,
@@ -134,4 +122,14 @@ pub(super) fn build_extras(
         InstanceAccel::build(&scene.instances, kind),
         scene.planes.clone(),
     )
+}
+
+/// `ray` ending at the current best hit, if any: the extras are searched in front of it.
+#[inline]
+fn clipped(ray: &Ray, best: &Option<SceneHit>) -> Ray {
+    let mut r = *ray;
+    if let Some(b) = best {
+        r.tmax = b.t;
+    }
+    r
 }

@@ -11,7 +11,6 @@
 
 use super::SamplerKind;
 use super::camera_rays::{CameraSampler, PixelSamples};
-use super::sobol::{SobolDim, SobolSet};
 use crate::geometry::Ray;
 use crate::geometry::warp::sample_aperture;
 use crate::simd::camera::{camera_rays, shutter_times};
@@ -87,21 +86,7 @@ impl CameraSampler {
                 }
                 continue;
             }
-            let sobol = (plan.sampler == SamplerKind::Sobol).then(|| {
-                [SobolDim::Pixel, SobolDim::Lens, SobolDim::Time]
-                    .map(|d| SobolSet::new(seed, index, d))
-            });
-            if sobol.is_some() {
-                let rendered = (plan.eye_end - plan.eye_begin) as u64;
-                if plan.lens > 0 {
-                    drawn.lens += rendered * lens_n as u64;
-                }
-                if plan.time > 0 {
-                    drawn.time += rendered * (lens_n * time_n) as u64;
-                }
-            } else {
-                self.draw_sets(seed, index, &mut st.sets, drawn);
-            }
+            let sobol = self.pixel_sets(seed, index, &mut st.sets, drawn);
             let sets = &st.sets;
             for e in plan.eye_begin as usize..plan.eye_end as usize {
                 let (ox, oy) = offset(match &sobol {

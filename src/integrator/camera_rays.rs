@@ -131,22 +131,7 @@ impl CameraSampler {
     ) {
         let plan = self.plan;
         let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
-        // The Sobol sampler computes each point from its index (only the rendered
-        // ones); the others draw every set of the pixel, in a fixed order.
-        let sobol = (plan.sampler == SamplerKind::Sobol).then(|| {
-            [SobolDim::Pixel, SobolDim::Lens, SobolDim::Time].map(|d| SobolSet::new(seed, index, d))
-        });
-        if sobol.is_some() {
-            let rendered = (plan.eye_end - plan.eye_begin) as u64;
-            if plan.lens > 0 {
-                drawn.lens += rendered * lens_n as u64;
-            }
-            if plan.time > 0 {
-                drawn.time += rendered * (lens_n * time_n) as u64;
-            }
-        } else {
-            self.draw_sets(seed, index, out, drawn);
-        }
+        let sobol = self.pixel_sets(seed, index, out, drawn);
         // Box: samples inside the pixel; otherwise over the filter's footprint.
         let footprint = 2.0 * plan.filter.radius();
         out.offsets.clear();
@@ -187,6 +172,38 @@ impl CameraSampler {
                 }
             }
         }
+    }
+
+    /// The sample sets of pixel `index`: the Sobol sampler computes each point from
+    /// its index (only the rendered ones, counted in `drawn`) and returns its sets
+    /// (pixel, lens, time); the other samplers draw every set of the pixel into `sets`,
+    /// in a fixed order ([`draw_sets`](Self::draw_sets)), and return `None`. Shared by
+    /// the scalar [`pixel_samples`](Self::pixel_samples) and the lane-parallel
+    /// `block_rays`.
+    pub(crate) fn pixel_sets(
+        &self,
+        seed: u64,
+        index: u64,
+        sets: &mut PixelSamples,
+        drawn: &mut EffectSamplesDrawn,
+    ) -> Option<[SobolSet; 3]> {
+        let plan = self.plan;
+        if plan.sampler != SamplerKind::Sobol {
+            self.draw_sets(seed, index, sets, drawn);
+            return None;
+        }
+        let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
+        let rendered = (plan.eye_end - plan.eye_begin) as u64;
+        if plan.lens > 0 {
+            drawn.lens += rendered * lens_n as u64;
+        }
+        if plan.time > 0 {
+            drawn.time += rendered * (lens_n * time_n) as u64;
+        }
+        Some(
+            [SobolDim::Pixel, SobolDim::Lens, SobolDim::Time]
+                .map(|d| SobolSet::new(seed, index, d)),
+        )
     }
 
     /// Draws every camera set of the pixel (all `eye` samples) from the pixel's own
