@@ -6,7 +6,7 @@ use crate::accel::{PrimRef, SceneHit};
 use crate::geometry::terminator::shadow_terminator_point;
 use crate::geometry::{Ray, sphere_point, triangle_point};
 use crate::scene::{Scene, TriangleMesh};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// What the shader needs to know about a hit.
 ///
@@ -33,7 +33,8 @@ pub struct SurfaceInteraction {
     /// horizon but below the flat facet. `None` elsewhere (shadow rays leave from `p`,
     /// and a light below the geometric surface contributes nothing).
     pub p_shadow: Option<Vec3>,
-    /// Texture coordinates at the hit ([`super::texturing::hit_uv`]).
+    /// Texture coordinates at the hit ([`super::texturing::hit_uv`]); zero when the
+    /// material has no texture (nothing reads them then).
     pub uv: glam::Vec2,
 }
 
@@ -116,7 +117,13 @@ impl SurfaceInteraction {
             material,
             front_face,
             p_shadow,
-            uv: super::texturing::hit_uv(scene, ray, hit),
+            // Only a textured material looks its uv up: a sphere's costs an atan2 and an
+            // asin, which an untextured scene should not pay at every hit.
+            uv: if scene.materials[material as usize].textures.is_empty() {
+                Vec2::ZERO
+            } else {
+                super::texturing::hit_uv(scene, ray, hit)
+            },
         }
     }
 }
