@@ -149,8 +149,9 @@ struct Builder {
     opts: Bvh2BuildOptions,
 }
 
-/// Most bins per axis the builder supports.
+/// Most bins per axis the builder supports (a power of two: see [`Bins::add`]).
 pub(super) const MAX_BINS: usize = 32;
+const _: () = assert!(MAX_BINS.is_power_of_two());
 
 /// Per-axis bins of one node: bounds and primitive counts.
 #[derive(Clone)]
@@ -168,13 +169,18 @@ impl Bins {
     }
 
     fn merge(mut self, o: &Bins) -> Bins {
+        self.merge_first(o, MAX_BINS);
+        self
+    }
+
+    /// Adds the first `n` bins of each axis of `o` to this one's.
+    fn merge_first(&mut self, o: &Bins, n: usize) {
         for a in 0..3 {
-            for k in 0..MAX_BINS {
+            for k in 0..n {
                 self.bounds[a][k].grow(&o.bounds[a][k]);
                 self.counts[a][k] += o.counts[a][k];
             }
         }
-        self
     }
 
     /// Empties the first `n` bins of each axis (the only ones a node uses).
@@ -188,6 +194,9 @@ impl Bins {
     #[inline(always)]
     fn add(&mut self, k: [usize; 3], b: &BBox) {
         for (axis, &bin) in k.iter().enumerate() {
+            // `bins_of` keeps `bin` below `bins <= MAX_BINS`; the mask only lets the
+            // compiler drop the bounds checks (a compare and branch per axis).
+            let bin = bin & (MAX_BINS - 1);
             self.counts[axis][bin] += 1;
             self.bounds[axis][bin].grow(b);
         }
@@ -201,12 +210,41 @@ impl Bins {
             self.add(k, &r.bounds());
         }
     }
+
+    /// As [`Bins::add_all`], alternating references between this set and `other`
+    /// (cleared for `bins_n` bins), then merging `other` in: the same bins. Neighbours
+    /// in a node's array often fall in the same bin, and each update of a bin waits for
+    /// the previous one through memory; two sets let two chains run at once (Embree's
+    /// binner bins two primitives per iteration for the same reason).
+    fn add_all_paired(
+        &mut self,
+        other: &mut Bins,
+        refs: &[PrimRef],
+        lo: Vec3A,
+        scale: Vec3A,
+        bins_n: usize,
+    ) {
+        let mut pairs = refs.chunks_exact(2);
+        for p in &mut pairs {
+            let (a, b) = (&p[0], &p[1]);
+            let ka = bins_of(a.centroid(), lo, scale, bins_n);
+            let kb = bins_of(b.centroid(), lo, scale, bins_n);
+            self.add(ka, &a.bounds());
+            other.add(kb, &b.bounds());
+        }
+        self.add_all(pairs.remainder(), lo, scale, bins_n);
+        self.merge_first(other, bins_n);
+    }
 }
+
+/// Nodes with at least this many references bin into two sets ([`Bins::add_all_paired`]).
+const PAIRED_BINNING: usize = 64;
 
 thread_local! {
     /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
     /// than building 3.5 KB of bins per node, most of which are tiny.
-    static SCRATCH_BINS: std::cell::RefCell<Bins> = std::cell::RefCell::new(Bins::new());
+    static SCRATCH_BINS: std::cell::RefCell<[Bins; 2]> =
+        std::cell::RefCell::new([Bins::new(), Bins::new()]);
 }
 
 /// Where to split a node: axis, first bin of the right side, bin count, SAH cost.
@@ -216,6 +254,18 @@ struct Split {
     bin: usize,
     bins: usize,
     cost: f32,
+}
+
+/// The chosen split with its children's boxes, read off the bins: a primitive goes
+/// left exactly when its bin on the split axis is below the split bin (the same
+/// [`bins_of`] decides both), so the union of the left bins' boxes is the union of the
+/// left primitives' boxes, bit for bit (min and max are exact). The partition then
+/// only gathers the children's centroid bounds.
+#[derive(Clone, Copy)]
+struct Chosen {
+    split: Split,
+    left: BBox,
+    right: BBox,
 }
 
 /// A node's bounds and its centroids' bounds, passed from parent to child so that
@@ -239,17 +289,17 @@ impl NodeBounds {
         }
     }
 
-    /// Grows the bounds by `r` where `mask` is set, leaves them alone elsewhere
-    /// (branch-free: the box of a primitive of the other side is replaced by an empty
-    /// one).
+}
+
+impl BBox {
+    /// Grows the box by point `c` where `mask` is set, leaves it alone elsewhere
+    /// (branch-free: the centroid of a primitive of the other side is replaced by an
+    /// empty box).
     #[inline(always)]
-    fn grow_masked(&mut self, r: &PrimRef, mask: BVec3A) {
+    fn grow_point_masked(&mut self, c: Vec3A, mask: BVec3A) {
         let inf = Vec3A::splat(f32::INFINITY);
-        let (b, c) = (r.bounds(), r.centroid());
-        self.bounds.min = self.bounds.min.min(Vec3A::select(mask, b.min, inf));
-        self.bounds.max = self.bounds.max.max(Vec3A::select(mask, b.max, -inf));
-        self.centroids.min = self.centroids.min.min(Vec3A::select(mask, c, inf));
-        self.centroids.max = self.centroids.max.max(Vec3A::select(mask, c, -inf));
+        self.min = self.min.min(Vec3A::select(mask, c, inf));
+        self.max = self.max.max(Vec3A::select(mask, c, -inf));
     }
 }
 
@@ -367,13 +417,21 @@ impl Builder {
 
         let sah = depth < MEDIAN_DEPTH && nb.centroids.extent().max_element() > 0.0;
         let mut split = None;
-        if let Some(s) = sah.then(|| self.best_split(refs, &nb)).flatten() {
+        if let Some(c) = sah.then(|| self.best_split(refs, &nb)).flatten() {
             let leaf_cost = self.opts.intersection_cost * self.blocks(n as u32);
-            if n <= self.opts.max_leaf && leaf_cost <= s.cost {
+            if n <= self.opts.max_leaf && leaf_cost <= c.split.cost {
                 return leaf(refs);
             }
-            let (m, left, right) = partition(refs, scratch, &nb.centroids, s);
+            let (m, lc, rc) = partition(refs, scratch, &nb.centroids, c.split);
             if m > 0 && m < n {
+                let left = NodeBounds {
+                    bounds: c.left,
+                    centroids: lc,
+                };
+                let right = NodeBounds {
+                    bounds: c.right,
+                    centroids: rc,
+                };
                 split = Some((m, left, right));
             }
         }
@@ -431,7 +489,7 @@ impl Builder {
     }
 
     /// Bins centroids on all three axes and sweeps for the cheapest plane.
-    fn best_split(&self, refs: &[PrimRef], nb: &NodeBounds) -> Option<Split> {
+    fn best_split(&self, refs: &[PrimRef], nb: &NodeBounds) -> Option<Chosen> {
         // Small nodes need few bins: at most two per primitive.
         let bins_n = self.opts.bins.min(refs.len().max(4));
         let cb = &nb.centroids;
@@ -447,16 +505,22 @@ impl Builder {
                 .reduce(Bins::new, |a, b| a.merge(&b));
             self.sweep(&bins, bins_n, nb)
         } else {
-            SCRATCH_BINS.with_borrow_mut(|bins| {
+            SCRATCH_BINS.with_borrow_mut(|[bins, other]| {
                 bins.clear(bins_n);
-                bins.add_all(refs, cb.min, scale, bins_n);
+                if refs.len() >= PAIRED_BINNING {
+                    other.clear(bins_n);
+                    bins.add_all_paired(other, refs, cb.min, scale, bins_n);
+                } else {
+                    bins.add_all(refs, cb.min, scale, bins_n);
+                }
                 self.sweep(bins, bins_n, nb)
             })
         }
     }
 
-    /// The SAH sweep over filled bins: the cheapest plane on any axis.
-    fn sweep(&self, bins: &Bins, bins_n: usize, nb: &NodeBounds) -> Option<Split> {
+    /// The SAH sweep over filled bins: the cheapest plane on any axis, and the boxes of
+    /// its two sides.
+    fn sweep(&self, bins: &Bins, bins_n: usize, nb: &NodeBounds) -> Option<Chosen> {
         let scale = bin_scale(&nb.centroids, bins_n);
 
         let inv_area = 1.0 / nb.bounds.area().max(f32::MIN_POSITIVE);
@@ -496,7 +560,18 @@ impl Builder {
                 }
             }
         }
-        best
+        best.map(|split| {
+            let side = |r: std::ops::Range<usize>| {
+                bins.bounds[split.axis][r]
+                    .iter()
+                    .fold(BBox::EMPTY, |a, b| a.union(b))
+            };
+            Chosen {
+                split,
+                left: side(0..split.bin),
+                right: side(split.bin..bins_n),
+            }
+        })
     }
 }
 
@@ -508,7 +583,8 @@ fn goes_left(r: &PrimRef, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
 
 /// Writes the references of `src` whose centroid bin is below the split bin to the
 /// front of `dst` in order, the others to the back in reverse order, and gathers both
-/// sides' bounds on the way. Returns the left count and the bounds.
+/// sides' centroid bounds on the way (their boxes come from the bins: [`Chosen`]).
+/// Returns the left count and the centroid bounds.
 ///
 /// Serial: branch-free (which side a primitive goes to is a coin flip to the branch
 /// predictor), each reference written to both the next left and the next right slot
@@ -520,23 +596,24 @@ fn partition(
     dst: &mut [PrimRef],
     cb: &BBox,
     s: Split,
-) -> (usize, NodeBounds, NodeBounds) {
+) -> (usize, BBox, BBox) {
     let scale = bin_scale(cb, s.bins);
     let n = src.len();
     if n >= PARALLEL_NODE && rayon::current_num_threads() > 1 {
         return partition_parallel(src, dst, cb.min, scale, s);
     }
-    let (mut left, mut right) = (NodeBounds::EMPTY, NodeBounds::EMPTY);
+    let (mut left, mut right) = (BBox::EMPTY, BBox::EMPTY);
     let (mut lo, mut hi) = (0usize, n);
     for r in src {
-        let l = goes_left(r, cb.min, scale, s);
+        let c = r.centroid();
+        let l = bins_of(c, cb.min, scale, s.bins)[s.axis] < s.bin;
         // lo < hi here: fewer than n references are placed
         dst[lo] = *r;
         dst[hi - 1] = *r;
         lo += usize::from(l);
         hi -= usize::from(!l);
-        left.grow_masked(r, BVec3A::splat(l));
-        right.grow_masked(r, BVec3A::splat(!l));
+        left.grow_point_masked(c, BVec3A::splat(l));
+        right.grow_point_masked(c, BVec3A::splat(!l));
     }
     (lo, left, right)
 }
@@ -548,18 +625,19 @@ fn partition_parallel(
     lo: Vec3A,
     scale: Vec3A,
     s: Split,
-) -> (usize, NodeBounds, NodeBounds) {
-    // Pass 1: per chunk, the left count and both sides' bounds.
-    let counts: Vec<(usize, NodeBounds, NodeBounds)> = src
+) -> (usize, BBox, BBox) {
+    // Pass 1: per chunk, the left count and both sides' centroid bounds.
+    let counts: Vec<(usize, BBox, BBox)> = src
         .par_chunks(PARALLEL_THRESHOLD)
         .map(|chunk| {
-            let (mut left, mut right) = (NodeBounds::EMPTY, NodeBounds::EMPTY);
+            let (mut left, mut right) = (BBox::EMPTY, BBox::EMPTY);
             let mut k = 0;
             for r in chunk {
-                let l = goes_left(r, lo, scale, s);
+                let c = r.centroid();
+                let l = bins_of(c, lo, scale, s.bins)[s.axis] < s.bin;
                 k += usize::from(l);
-                left.grow_masked(r, BVec3A::splat(l));
-                right.grow_masked(r, BVec3A::splat(!l));
+                left.grow_point_masked(c, BVec3A::splat(l));
+                right.grow_point_masked(c, BVec3A::splat(!l));
             }
             (k, left, right)
         })
@@ -567,7 +645,7 @@ fn partition_parallel(
     let mid: usize = counts.iter().map(|c| c.0).sum();
     let (left, right) = counts
         .iter()
-        .fold((NodeBounds::EMPTY, NodeBounds::EMPTY), |(a, b), c| {
+        .fold((BBox::EMPTY, BBox::EMPTY), |(a, b), c| {
             (a.union(&c.1), b.union(&c.2))
         });
     // Pass 2: chunk j's lefts follow those of chunks before it; its rights, reversed,
@@ -650,10 +728,8 @@ mod tests {
         assert_eq!(m1, m2);
         assert_eq!(bits(&serial), bits(&parallel));
         for (a, b) in [(l1, l2), (r1, r2)] {
-            assert_eq!(a.bounds.min, b.bounds.min);
-            assert_eq!(a.bounds.max, b.bounds.max);
-            assert_eq!(a.centroids.min, b.centroids.min);
-            assert_eq!(a.centroids.max, b.centroids.max);
+            assert_eq!(a.min, b.min);
+            assert_eq!(a.max, b.max);
         }
         // left in input order, right reversed
         let ids: Vec<u32> = serial.iter().map(PrimRef::id).collect();
