@@ -147,6 +147,10 @@ impl BuildNode {
 
 struct Builder {
     opts: Bvh2BuildOptions,
+    /// `log2(block_size)` when the block size is a power of two (1 and 4 are the ones
+    /// in use): [`Builder::blocks`] is then a shift. The integer division it replaces
+    /// ran twice per bin and axis in the sweep, and the sweep was 10 % of a build.
+    block_shift: Option<u32>,
 }
 
 /// Most bins per axis the builder supports (a power of two: see [`Bins::add`]).
@@ -288,7 +292,6 @@ impl NodeBounds {
             centroids: self.centroids.union(&o.centroids),
         }
     }
-
 }
 
 impl BBox {
@@ -328,7 +331,11 @@ pub(super) fn build_tree<P: Primitives>(
         return (None, ids);
     }
     let mut scratch = refs.clone();
-    let builder = Builder { opts };
+    let bs = opts.block_size.max(1);
+    let builder = Builder {
+        opts,
+        block_shift: bs.is_power_of_two().then(|| bs.trailing_zeros()),
+    };
     let nb = node_bounds(&refs);
     let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb);
     (Some(root), ids)
@@ -485,12 +492,21 @@ impl Builder {
     /// Leaf test units for `n` primitives: started blocks of `block_size`.
     #[inline(always)]
     fn blocks(&self, n: u32) -> f32 {
-        n.div_ceil(self.opts.block_size.max(1) as u32) as f32
+        match self.block_shift {
+            // n < 2^32 - block_size: the builder holds fewer than 2^32 primitives and
+            // block sizes are small, so the sum does not wrap.
+            Some(shift) => ((n + (1 << shift) - 1) >> shift) as f32,
+            None => n.div_ceil(self.opts.block_size as u32) as f32,
+        }
     }
 
     /// Bins centroids on all three axes and sweeps for the cheapest plane.
     fn best_split(&self, refs: &[PrimRef], nb: &NodeBounds) -> Option<Chosen> {
         // Small nodes need few bins: at most two per primitive.
+        // Measured and not taken: Embree's count, min(32, 4 + n / 20), built the bunny
+        // in 34-35 ms against 38-41 ms (same run, busy machine) for a 0.24 % higher SAH
+        // cost (10.770 vs 10.744; 16.159 vs 16.092 at 10^6) and 3 % more leaves; left
+        // out to keep the trees as they were.
         let bins_n = self.opts.bins.min(refs.len().max(4));
         let cb = &nb.centroids;
         let scale = bin_scale(cb, bins_n);
@@ -524,61 +540,79 @@ impl Builder {
         let scale = bin_scale(&nb.centroids, bins_n);
 
         let inv_area = 1.0 / nb.bounds.area().max(f32::MIN_POSITIVE);
-        let mut best: Option<Split> = None;
-        let mut right_area = [0.0f32; MAX_BINS];
-        let mut right_count = [0u32; MAX_BINS];
+        // The best plane as plain scalars (an `Option<Split>` compared and rewritten in
+        // the inner loop kept it in memory); the first of equal costs wins, as before.
+        let (mut found, mut best_cost, mut best_axis, mut best_bin) = (false, 0.0f32, 0, 0);
+        // Right side's area times its leaf blocks per plane, and whether it is empty.
+        let mut right_term = [0.0f32; MAX_BINS];
+        let mut right_empty = [true; MAX_BINS];
         for axis in 0..3 {
             if scale[axis] == 0.0 {
                 continue;
             }
+            let (bounds, counts) = (&bins.bounds[axis][..bins_n], &bins.counts[axis][..bins_n]);
             let (mut acc, mut cnt) = (BBox::EMPTY, 0);
             for k in (1..bins_n).rev() {
-                acc.grow(&bins.bounds[axis][k]);
-                cnt += bins.counts[axis][k];
-                right_area[k] = acc.area();
-                right_count[k] = cnt;
+                acc.grow(&bounds[k]);
+                cnt += counts[k];
+                right_term[k] = acc.area() * self.blocks(cnt);
+                right_empty[k] = cnt == 0;
             }
             let (mut acc, mut cnt) = (BBox::EMPTY, 0);
             for k in 1..bins_n {
-                acc.grow(&bins.bounds[axis][k - 1]);
-                cnt += bins.counts[axis][k - 1];
-                if cnt == 0 || right_count[k] == 0 {
+                acc.grow(&bounds[k - 1]);
+                cnt += counts[k - 1];
+                if cnt == 0 || right_empty[k] {
                     continue;
                 }
                 let cost = self.opts.traversal_cost
                     + self.opts.intersection_cost
-                        * (acc.area() * self.blocks(cnt)
-                            + right_area[k] * self.blocks(right_count[k]))
+                        * (acc.area() * self.blocks(cnt) + right_term[k])
                         * inv_area;
-                if best.is_none_or(|b| cost < b.cost) {
-                    best = Some(Split {
-                        axis,
-                        bin: k,
-                        bins: bins_n,
-                        cost,
-                    });
+                if !found || cost < best_cost {
+                    (found, best_cost, best_axis, best_bin) = (true, cost, axis, k);
                 }
             }
         }
-        best.map(|split| {
-            let side = |r: std::ops::Range<usize>| {
-                bins.bounds[split.axis][r]
-                    .iter()
-                    .fold(BBox::EMPTY, |a, b| a.union(b))
-            };
-            Chosen {
-                split,
-                left: side(0..split.bin),
-                right: side(split.bin..bins_n),
-            }
-        })
+        found
+            .then_some(Split {
+                axis: best_axis,
+                bin: best_bin,
+                bins: bins_n,
+                cost: best_cost,
+            })
+            .map(|split| {
+                let side = |r: std::ops::Range<usize>| {
+                    bins.bounds[split.axis][r]
+                        .iter()
+                        .fold(BBox::EMPTY, |a, b| a.union(b))
+                };
+                Chosen {
+                    split,
+                    left: side(0..split.bin),
+                    right: side(split.bin..bins_n),
+                }
+            })
     }
 }
 
 /// Whether a reference goes to the left of split `s`.
 #[inline(always)]
 fn goes_left(r: &PrimRef, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
-    bins_of(r.centroid(), lo, scale, s.bins)[s.axis] < s.bin
+    centroid_goes_left(r.centroid(), lo, scale, s)
+}
+
+/// Whether centroid `c` is left of split `s`: its bin on the split axis, computed as
+/// [`bins_of`] computes it (same operations, same clamp), below the split bin. Only the
+/// split axis: the partition spent a third of its conversions on the other two.
+#[inline(always)]
+fn centroid_goes_left(c: Vec3A, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
+    let k = ((c[s.axis] - lo[s.axis]) * scale[s.axis])
+        .max(0.0)
+        .min((s.bins - 1) as f32);
+    // SAFETY: finite and in [0, bins - 1] after the clamp (f32::max/min return the
+    // non-NaN operand), as in `bins_of`.
+    (unsafe { k.to_int_unchecked::<u32>() } as usize) < s.bin
 }
 
 /// Writes the references of `src` whose centroid bin is below the split bin to the
@@ -591,12 +625,7 @@ fn goes_left(r: &PrimRef, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
 /// and only one cursor advanced. In parallel (nodes of at least [`PARALLEL_NODE`] with
 /// more than one thread): chunks count their sides first, then each writes its part of
 /// both sides, to the same places the serial loop would.
-fn partition(
-    src: &[PrimRef],
-    dst: &mut [PrimRef],
-    cb: &BBox,
-    s: Split,
-) -> (usize, BBox, BBox) {
+fn partition(src: &[PrimRef], dst: &mut [PrimRef], cb: &BBox, s: Split) -> (usize, BBox, BBox) {
     let scale = bin_scale(cb, s.bins);
     let n = src.len();
     if n >= PARALLEL_NODE && rayon::current_num_threads() > 1 {
@@ -606,7 +635,7 @@ fn partition(
     let (mut lo, mut hi) = (0usize, n);
     for r in src {
         let c = r.centroid();
-        let l = bins_of(c, cb.min, scale, s.bins)[s.axis] < s.bin;
+        let l = centroid_goes_left(c, cb.min, scale, s);
         // lo < hi here: fewer than n references are placed
         dst[lo] = *r;
         dst[hi - 1] = *r;
@@ -634,7 +663,7 @@ fn partition_parallel(
             let mut k = 0;
             for r in chunk {
                 let c = r.centroid();
-                let l = bins_of(c, lo, scale, s.bins)[s.axis] < s.bin;
+                let l = centroid_goes_left(c, lo, scale, s);
                 k += usize::from(l);
                 left.grow_point_masked(c, BVec3A::splat(l));
                 right.grow_point_masked(c, BVec3A::splat(!l));
@@ -643,11 +672,9 @@ fn partition_parallel(
         })
         .collect();
     let mid: usize = counts.iter().map(|c| c.0).sum();
-    let (left, right) = counts
-        .iter()
-        .fold((BBox::EMPTY, BBox::EMPTY), |(a, b), c| {
-            (a.union(&c.1), b.union(&c.2))
-        });
+    let (left, right) = counts.iter().fold((BBox::EMPTY, BBox::EMPTY), |(a, b), c| {
+        (a.union(&c.1), b.union(&c.2))
+    });
     // Pass 2: chunk j's lefts follow those of chunks before it; its rights, reversed,
     // precede (from the back) those of chunks before it.
     let (dst_left, dst_right) = dst.split_at_mut(mid);
@@ -735,6 +762,133 @@ mod tests {
         let ids: Vec<u32> = serial.iter().map(PrimRef::id).collect();
         assert!(ids[..m1].windows(2).all(|w| w[0] < w[1]));
         assert!(ids[m1..].windows(2).all(|w| w[0] > w[1]));
+    }
+
+    /// Boxes of every size and place on all three axes (a pseudo-random walk).
+    fn refs_3d(n: usize) -> Vec<PrimRef> {
+        let mut x = 0x2545_f491_u32;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            (x % 10_000) as f32 * 0.01
+        };
+        (0..n)
+            .map(|i| {
+                let lo = glam::Vec3::new(next(), next() * 0.5, next() * 2.0);
+                let size = glam::Vec3::new(next(), next(), next()) * 0.05;
+                PrimRef::new(Aabb::new(lo, lo + size), i as u32)
+            })
+            .collect()
+    }
+
+    fn box_bits(b: &BBox) -> [u32; 6] {
+        let (lo, hi) = (b.min.to_array(), b.max.to_array());
+        [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]].map(f32::to_bits)
+    }
+
+    /// Two bin sets merged hold exactly what one set fills (odd count: the remainder).
+    #[test]
+    fn paired_binning_fills_the_same_bins() {
+        let src = refs_3d(1001);
+        let nb = node_bounds(&src);
+        let scale = bin_scale(&nb.centroids, MAX_BINS);
+        let mut one = Bins::new();
+        one.add_all(&src, nb.centroids.min, scale, MAX_BINS);
+        let (mut two, mut other) = (Bins::new(), Bins::new());
+        two.add_all_paired(&mut other, &src, nb.centroids.min, scale, MAX_BINS);
+        for a in 0..3 {
+            assert_eq!(one.counts[a], two.counts[a]);
+            for k in 0..MAX_BINS {
+                assert_eq!(box_bits(&one.bounds[a][k]), box_bits(&two.bounds[a][k]));
+            }
+        }
+        assert_eq!(one.counts[0].iter().sum::<u32>(), 1001);
+    }
+
+    /// For every plane of every axis: the children's boxes read off the bins are those
+    /// of the references the partition sends each way, the centroid bounds it gathers
+    /// are theirs, and the one-axis test agrees with the bins.
+    #[test]
+    fn children_boxes_from_the_bins_match_the_partition() {
+        let src = refs_3d(3000);
+        let nb = node_bounds(&src);
+        let bins_n = 16;
+        let scale = bin_scale(&nb.centroids, bins_n);
+        let mut bins = Bins::new();
+        bins.add_all(&src, nb.centroids.min, scale, bins_n);
+        let mut dst = src.clone();
+        let mut real_splits = 0;
+        for axis in 0..3 {
+            for bin in 1..bins_n {
+                let s = Split {
+                    axis,
+                    bin,
+                    bins: bins_n,
+                    cost: 0.0,
+                };
+                let (m, lc, rc) = partition(&src, &mut dst, &nb.centroids, s);
+                for r in &src {
+                    let k = bins_of(r.centroid(), nb.centroids.min, scale, bins_n);
+                    assert_eq!(goes_left(r, nb.centroids.min, scale, s), k[axis] < bin);
+                }
+                if m == 0 || m == src.len() {
+                    continue;
+                }
+                real_splits += 1;
+                let union = |r: std::ops::Range<usize>| {
+                    bins.bounds[axis][r]
+                        .iter()
+                        .fold(BBox::EMPTY, |a, b| a.union(b))
+                };
+                let (l, r) = (node_bounds(&dst[..m]), node_bounds(&dst[m..]));
+                assert_eq!(box_bits(&union(0..bin)), box_bits(&l.bounds));
+                assert_eq!(box_bits(&union(bin..bins_n)), box_bits(&r.bounds));
+                assert_eq!(box_bits(&lc), box_bits(&l.centroids));
+                assert_eq!(box_bits(&rc), box_bits(&r.centroids));
+            }
+        }
+        assert!(real_splits > 40, "{real_splits} planes split the set");
+    }
+
+    /// The sweep's chosen split carries the children's boxes of that split.
+    #[test]
+    fn the_sweep_returns_its_sides_boxes() {
+        let src = refs_3d(2000);
+        let nb = node_bounds(&src);
+        let builder = Builder {
+            opts: Bvh2BuildOptions::default(),
+            block_shift: Some(0),
+        };
+        let c = builder.best_split(&src, &nb).expect("a split");
+        let mut dst = src.clone();
+        let (m, _, _) = partition(&src, &mut dst, &nb.centroids, c.split);
+        assert!(m > 0 && m < src.len());
+        assert_eq!(box_bits(&c.left), box_bits(&node_bounds(&dst[..m]).bounds));
+        assert_eq!(box_bits(&c.right), box_bits(&node_bounds(&dst[m..]).bounds));
+    }
+
+    /// The shift gives the started blocks the division gives.
+    #[test]
+    fn blocks_by_shift_match_the_division() {
+        for bs in [1usize, 2, 4, 8] {
+            let opts = Bvh2BuildOptions {
+                block_size: bs,
+                ..Bvh2BuildOptions::default()
+            };
+            let shifted = Builder {
+                opts,
+                block_shift: Some(bs.trailing_zeros()),
+            };
+            let divided = Builder {
+                opts,
+                block_shift: None,
+            };
+            for n in 0..100u32 {
+                assert_eq!(shifted.blocks(n), divided.blocks(n));
+                assert_eq!(divided.blocks(n), n.div_ceil(bs as u32) as f32);
+            }
+        }
     }
 
     /// The id survives the round trip through the spare lane, NaN-pattern ids included.

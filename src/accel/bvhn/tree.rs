@@ -68,7 +68,10 @@ where
         };
         let root = match &tree {
             None => EMPTY_CHILD,
-            Some(t) => c.collapse(t, PARALLEL_COLLAPSE_LEVELS),
+            // One thread gains nothing from the parallel levels and pays for them: each
+            // subtree collapses into arrays of its own that are then copied in.
+            Some(t) if rayon::current_num_threads() > 1 => c.collapse(t, PARALLEL_COLLAPSE_LEVELS),
+            Some(t) => c.collapse(t, 0),
         };
         let Collapse { nodes, groups, .. } = c;
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
