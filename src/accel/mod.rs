@@ -21,7 +21,9 @@ pub mod spatial;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
-pub use bvhn::{Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, Width};
+pub use bvhn::{
+    Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, STREAM_MIN_RAYS, Width,
+};
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
 pub use instance::InstanceAccel;
@@ -71,6 +73,18 @@ pub trait Accel: Send + Sync {
         for (r, o) in rays.iter().zip(out.iter_mut()) {
             *o = self.any_hit(r);
         }
+    }
+
+    /// Closest hits for a large batch of rays (hundreds to thousands, incoherent ones
+    /// above all) traced as one stream. Structures with a stream kernel (BVH4/BVH8:
+    /// `bvhn/stream.rs`) override this; the others trace the batch as a batch.
+    fn closest_hit_stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.closest_hit_batch(rays, out);
+    }
+
+    /// Occlusion for a large batch of rays traced as one stream.
+    fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        self.any_hit_batch(rays, out);
     }
 
     /// Closest hits for one packet of rays in structure-of-arrays form (lanes

@@ -31,10 +31,12 @@ mod packet_bounds;
 mod packet_setup;
 mod single;
 mod stack;
+mod stream;
 #[cfg(test)]
 mod tests;
 mod tree;
 
 pub use node::{Bvh4Node, Bvh8Node, BvhNode, NodeWidth, Width};
 pub use packet::PACKET_MIN_ACTIVE;
+pub use stream::STREAM_MIN_RAYS;
 pub use tree::{Bvh, Bvh4, Bvh8};

@@ -1,0 +1,322 @@
+//! Stream traversal: a batch of hundreds to thousands of rays traced node by node, each
+//! node fetched once for every ray of the batch that reaches it, in the spirit of
+//! Barringer and Akenine-Möller, "Dynamic Ray Stream Traversal" (ACM TOG 33(4), SIGGRAPH
+//! 2014: a depth-first walk of the tree carrying the list of ray ids that entered each
+//! node, each child getting the sub-list of rays that enter it) and of Fuetterling,
+//! Lojewski, Pfreundt and Ebert, "Efficient Ray Tracing Kernels for Modern CPU
+//! Architectures" (JCGT 4(5), 2015: ordered ray stream traversal, children visited in
+//! the order of the rays' mean entry distance).
+//!
+//! The rays are binned by direction octant first (every ray of a bin shares the near and
+//! far slab planes, so a node's six plane vectors are loaded once per node and bin), and
+//! within a bin keep the caller's order (the bench and the wavefront hand rays over in
+//! pixel order, which already groups neighbouring origins). At an interior node each ray
+//! of the list is tested against all N children at once (the single-ray N-wide slab
+//! test, with the same arithmetic and the same conservative far-plane scale as
+//! `single.rs`), and its id is appended to the list of every child it enters. A list that
+//! has shrunk to fewer than [`STREAM_MIN_RAYS`] rays finishes its subtree ray by ray
+//! (`closest_from` / `any_from`), as DRST does. Leaves run the single-ray leaf kernels
+//! (`leaf_closest` / `leaf_any`, the watertight test with its scalar edge fallback), so
+//! every hit is the scalar oracle's, bit for bit: `t`, `u`, `v` and the primitive (an
+//! exact tie in `t` between two primitives may go to either, as for the packets).
+//!
+//! Lists live in one arena: a node's children get `N` slots of the parent list's length
+//! each, above everything still on the stack; an entry popped from the stack frees what
+//! lies above its parent's block (the stack is LIFO, so everything there is finished).
+
+use super::node::{BvhNode, NodeWidth, Width, is_leaf};
+use super::tree::Bvh;
+use crate::accel::Primitives;
+use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
+use crate::simd::Lanes;
+use std::cell::RefCell;
+
+/// Lists shorter than this finish their subtree ray by ray.
+pub const STREAM_MIN_RAYS: u32 = 2;
+
+/// One ray as the node test reads it: 48 bytes, so a gathered ray touches one cache line
+/// at most twice.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(16))]
+struct StreamRay {
+    o: [f32; 3],
+    tmin: f32,
+    inv: [f32; 3],
+    /// The end of the ray's interval: the closest hit so far; NaN once an occlusion
+    /// query is answered (a NaN far distance enters no child).
+    tmax: f32,
+    /// `inv * (1 + 2 gamma(3))`, the conservative far-plane scale of `single.rs`.
+    inv_far: [f32; 3],
+    _pad: f32,
+}
+
+/// A list of rays waiting to traverse the subtree `node`: ids `start..start + len` of
+/// the arena; `top` is where the arena is free once this entry is popped.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    node: u32,
+    start: u32,
+    len: u32,
+    top: u32,
+}
+
+/// The reusable buffers of one thread's stream traversals.
+#[derive(Default)]
+struct Scratch {
+    rays: Vec<StreamRay>,
+    queries: Vec<RayQuery>,
+    /// The queries in the caller's order, before binning.
+    unbinned: Vec<RayQuery>,
+    /// Index in the caller's batch of each binned ray.
+    index: Vec<u32>,
+    /// Index in the caller's batch of each unbinned query.
+    order: Vec<u32>,
+    best: Vec<Option<Hit>>,
+    done: Vec<bool>,
+    arena: Vec<u32>,
+    stack: Vec<Entry>,
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+impl Scratch {
+    /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
+    /// first binned ray of each octant (and the end).
+    fn bin(&mut self, rays: &[Ray]) -> [u32; 9] {
+        let octant = |q: &RayQuery| {
+            (q.inv_dir.x.is_sign_negative() as usize)
+                | (q.inv_dir.y.is_sign_negative() as usize) << 1
+                | (q.inv_dir.z.is_sign_negative() as usize) << 2
+        };
+        // Counting sort: the queries are built once, in the caller's order, then moved.
+        let mut unbinned = std::mem::take(&mut self.unbinned);
+        unbinned.clear();
+        let mut order = std::mem::take(&mut self.order);
+        order.clear();
+        let mut count = [0u32; 9];
+        for (i, r) in rays.iter().enumerate() {
+            if let Some(q) = RayQuery::new(r) {
+                count[octant(&q) + 1] += 1;
+                unbinned.push(q);
+                order.push(i as u32);
+            }
+        }
+        for o in 0..8 {
+            count[o + 1] += count[o];
+        }
+        let n = unbinned.len();
+        let mut next = count;
+        let blank = StreamRay::default();
+        self.rays.clear();
+        self.rays.resize(n, blank);
+        self.index.clear();
+        self.index.resize(n, 0);
+        let blank_query = unbinned.first().copied();
+        self.queries.clear();
+        if let Some(b) = blank_query {
+            self.queries.resize(n, b);
+        }
+        for (q, &i) in unbinned.iter().zip(&order) {
+            let o = octant(q);
+            let s = next[o] as usize;
+            next[o] += 1;
+            self.queries[s] = *q;
+            self.index[s] = i;
+            self.rays[s] = StreamRay {
+                o: q.origin.to_array(),
+                tmin: q.tmin,
+                inv: q.inv_dir.to_array(),
+                tmax: q.tmax,
+                inv_far: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
+                _pad: 0.0,
+            };
+        }
+        self.unbinned = unbinned;
+        self.order = order;
+        self.best.clear();
+        self.best.resize(n, None);
+        self.done.clear();
+        self.done.resize(n, false);
+        count
+    }
+}
+
+/// A node's six plane vectors in the order an octant's rays read them.
+struct OctantPlanes<L: Lanes> {
+    near: [L; 3],
+    far: [L; 3],
+}
+
+impl<L: Lanes> OctantPlanes<L> {
+    #[inline(always)]
+    fn new<const N: usize>(node: &BvhNode<N>, octant: usize) -> Self {
+        let p = &node.planes;
+        let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
+        OctantPlanes {
+            near: near.map(|i| L::load(&p[i])),
+            far: near.map(|i| L::load(&p[if i >= 3 { i - 3 } else { i + 3 }])),
+        }
+    }
+
+    /// The single-ray slab test of `single.rs` (`NodeRay::test`), the same operations:
+    /// entry distances and the mask of the children entered.
+    #[inline(always)]
+    fn test(&self, r: &StreamRay) -> (L, L) {
+        let s = L::splat;
+        let d = |a: usize| (self.near[a] - s(r.o[a])) * s(r.inv[a]);
+        let f = |a: usize| (self.far[a] - s(r.o[a])) * s(r.inv_far[a]);
+        let enter = d(0).maxps(d(1).maxps(d(2).maxps(s(r.tmin))));
+        let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax * ROBUST_FAR_SCALE))));
+        (enter, enter.le(exit))
+    }
+}
+
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
+    /// Closest hits of a batch of rays by stream traversal; the same answers as
+    /// [`closest_single`](Self::closest_single) for each ray.
+    pub fn closest_stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert!(out.len() >= rays.len(), "one answer per ray");
+        SCRATCH.with_borrow_mut(|s| {
+            self.stream::<false>(s, rays);
+            out[..rays.len()].fill(None);
+            for (&i, h) in s.index.iter().zip(&s.best) {
+                out[i as usize] = *h;
+            }
+        });
+    }
+
+    /// Occlusion of a batch of rays by stream traversal; the same answers as
+    /// [`any_single`](Self::any_single) for each ray.
+    pub fn any_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        assert!(out.len() >= rays.len(), "one answer per ray");
+        SCRATCH.with_borrow_mut(|s| {
+            self.stream::<true>(s, rays);
+            out[..rays.len()].fill(false);
+            for (&i, &d) in s.index.iter().zip(&s.done) {
+                out[i as usize] = d;
+            }
+        });
+    }
+
+    fn stream<const ANY: bool>(&self, s: &mut Scratch, rays: &[Ray]) {
+        let bins = s.bin(rays);
+        for octant in 0..8 {
+            let (b0, b1) = (bins[octant], bins[octant + 1]);
+            if b1 > b0 {
+                s.arena.clear();
+                s.arena.extend(b0..b1);
+                self.stream_octant::<ANY>(s, octant, b1 - b0);
+            }
+        }
+    }
+
+    /// Traverses the rays `s.arena[..len]` (all of direction octant `octant`).
+    fn stream_octant<const ANY: bool>(&self, s: &mut Scratch, octant: usize, len: u32) {
+        s.stack.clear();
+        s.stack.push(Entry {
+            node: self.root,
+            start: 0,
+            len,
+            top: len,
+        });
+        while let Some(e) = s.stack.pop() {
+            let (start, end) = (e.start as usize, (e.start + e.len) as usize);
+            if is_leaf(e.node) || e.len < STREAM_MIN_RAYS {
+                for k in start..end {
+                    let id = s.arena[k] as usize;
+                    self.finish::<ANY>(s, id, e.node);
+                }
+                continue;
+            }
+            let node = &self.nodes[e.node as usize];
+            let top = e.top as usize;
+            let block = N * e.len as usize;
+            if s.arena.len() < top + block {
+                s.arena.resize(top + block, 0);
+            }
+            let (below, above) = s.arena.split_at_mut(top);
+            let list = &below[start..end];
+            let out = &mut above[..block];
+            let planes = OctantPlanes::<<Width<N> as NodeWidth>::L>::new(node, octant);
+            let stride = e.len as usize;
+            let mut counts = [0u32; N];
+            let mut sum = <<Width<N> as NodeWidth>::L as Lanes>::splat(0.0);
+            for &id in list {
+                let (enter, hit) = planes.test(&s.rays[id as usize]);
+                let mut m = hit.bitmask();
+                if !ANY {
+                    sum = sum + (hit & enter);
+                }
+                while m != 0 {
+                    let c = m.trailing_zeros() as usize;
+                    out[c * stride + counts[c] as usize] = id;
+                    counts[c] += 1;
+                    m &= m - 1;
+                }
+            }
+            // Children far to near by the mean entry distance of their rays, so the
+            // nearest is popped first (ordered ray stream traversal).
+            let sum = sum.to_array();
+            let mut order = [(0usize, 0f32); N];
+            let mut n = 0;
+            for (c, &k) in counts.iter().enumerate() {
+                if k == 0 {
+                    continue;
+                }
+                let key = if ANY { 0.0 } else { sum.as_ref()[c] / k as f32 };
+                let mut j = n;
+                while j > 0 && order[j - 1].1 < key {
+                    order[j] = order[j - 1];
+                    j -= 1;
+                }
+                order[j] = (c, key);
+                n += 1;
+            }
+            let new_top = (top + block) as u32;
+            for &(c, _) in &order[..n] {
+                s.stack.push(Entry {
+                    node: node.children[c],
+                    start: (top + c * stride) as u32,
+                    len: counts[c],
+                    top: new_top,
+                });
+            }
+        }
+    }
+
+    /// Ray `id` through the subtree `node` on its own (a leaf, or a short list).
+    #[inline(always)]
+    fn finish<const ANY: bool>(&self, s: &mut Scratch, id: usize, node: u32) {
+        let q = &s.queries[id];
+        if ANY {
+            if s.done[id] {
+                return;
+            }
+            let hit = if is_leaf(node) {
+                self.leaf_any(q, node)
+            } else {
+                self.any_from(q, node)
+            };
+            if hit {
+                s.done[id] = true;
+                s.rays[id].tmax = f32::NAN;
+            }
+        } else {
+            let tmax = s.rays[id].tmax;
+            let h = if is_leaf(node) {
+                self.leaf_closest(q, node, tmax)
+            } else {
+                self.closest_from(q, node, tmax)
+            };
+            if let Some(h) = h {
+                s.rays[id].tmax = h.t;
+                s.best[id] = Some(h);
+            }
+        }
+    }
+}
