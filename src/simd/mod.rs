@@ -10,6 +10,7 @@
 //! from comparisons; [`Lanes::bitmask`] turns one into an integer with bit `i` for lane `i`.
 
 pub mod camera;
+pub mod compact;
 pub mod kernels;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};

@@ -29,6 +29,7 @@ use super::tree::Bvh;
 use crate::accel::Primitives;
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
+use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use std::cell::RefCell;
 
 /// Lists shorter than this finish their subtree ray by ray.
@@ -74,6 +75,8 @@ struct Scratch {
     best: Vec<Option<Hit>>,
     done: Vec<bool>,
     arena: Vec<u32>,
+    /// The child mask of each ray of the list at hand.
+    masks: Vec<u32>,
     stack: Vec<Entry>,
 }
 
@@ -226,7 +229,7 @@ where
         });
         while let Some(e) = s.stack.pop() {
             let (start, end) = (e.start as usize, (e.start + e.len) as usize);
-            if is_leaf(e.node) || e.len < STREAM_MIN_RAYS {
+            if is_leaf(e.node) || e.len < tune(0, STREAM_MIN_RAYS) {
                 for k in start..end {
                     let id = s.arena[k] as usize;
                     self.finish::<ANY>(s, id, e.node);
@@ -235,30 +238,38 @@ where
             }
             let node = &self.nodes[e.node as usize];
             let top = e.top as usize;
-            let block = N * e.len as usize;
-            if s.arena.len() < top + block {
-                s.arena.resize(top + block, 0);
+            let len = e.len as usize;
+            let block = N * len;
+            if s.arena.len() < top + block + COMPACT_SLACK {
+                s.arena.resize(top + block + COMPACT_SLACK, 0);
+            }
+            if s.masks.len() < len {
+                s.masks.resize(len, 0);
             }
             let (below, above) = s.arena.split_at_mut(top);
             let list = &below[start..end];
-            let out = &mut above[..block];
             let planes = OctantPlanes::<<Width<N> as NodeWidth>::L>::new(node, octant);
-            let stride = e.len as usize;
-            let mut counts = [0u32; N];
+            // Pass 1: every ray against the N children (no loop-carried dependency but
+            // the sum); pass 2: each entered child's list compacted from the masks.
             let mut sum = <<Width<N> as NodeWidth>::L as Lanes>::splat(0.0);
-            for &id in list {
+            let mut union = 0u32;
+            for (&id, m) in list.iter().zip(&mut s.masks[..len]) {
                 let (enter, hit) = planes.test(&s.rays[id as usize]);
-                let mut m = hit.bitmask();
+                *m = hit.bitmask();
+                union |= *m;
                 if !ANY {
                     sum = sum + (hit & enter);
                 }
-                while m != 0 {
-                    let c = m.trailing_zeros() as usize;
-                    out[c * stride + counts[c] as usize] = id;
-                    counts[c] += 1;
-                    m &= m - 1;
-                }
             }
+            let mut counts = [0u32; N];
+            let mut u = union;
+            while u != 0 {
+                let c = u.trailing_zeros();
+                u &= u - 1;
+                counts[c as usize] =
+                    select_ids(list, &s.masks[..len], c, &mut above[c as usize * len..]) as u32;
+            }
+            let stride = len;
             // Children far to near by the mean entry distance of their rays, so the
             // nearest is popped first (ordered ray stream traversal).
             let sum = sum.to_array();
@@ -319,4 +330,14 @@ where
             }
         }
     }
+}
+
+pub fn tune(k: usize, default: u32) -> u32 {
+    static V: std::sync::OnceLock<Vec<Option<u32>>> = std::sync::OnceLock::new();
+    V.get_or_init(|| {
+        (0..8)
+            .map(|i| std::env::var(format!("TUNE{i}")).ok().and_then(|v| v.parse().ok()))
+            .collect()
+    })[k]
+    .unwrap_or(default)
 }
