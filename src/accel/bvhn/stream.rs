@@ -66,11 +66,9 @@ struct Entry {
 struct Scratch {
     rays: Vec<StreamRay>,
     queries: Vec<RayQuery>,
-    /// The queries in the caller's order, before binning.
-    unbinned: Vec<RayQuery>,
     /// Index in the caller's batch of each binned ray.
     index: Vec<u32>,
-    /// Index in the caller's batch of each unbinned query.
+    /// The octant of each ray of the caller's batch (8: invalid).
     order: Vec<u32>,
     best: Vec<Option<Hit>>,
     done: Vec<bool>,
@@ -88,45 +86,46 @@ impl Scratch {
     /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
     /// first binned ray of each octant (and the end).
     fn bin(&mut self, rays: &[Ray]) -> [u32; 9] {
-        let octant = |q: &RayQuery| {
-            (q.inv_dir.x.is_sign_negative() as usize)
-                | (q.inv_dir.y.is_sign_negative() as usize) << 1
-                | (q.inv_dir.z.is_sign_negative() as usize) << 2
-        };
-        // Counting sort: the queries are built once, in the caller's order, then moved.
-        let mut unbinned = std::mem::take(&mut self.unbinned);
-        unbinned.clear();
-        let mut order = std::mem::take(&mut self.order);
-        order.clear();
-        let mut count = [0u32; 9];
-        for (i, r) in rays.iter().enumerate() {
-            if let Some(q) = RayQuery::new(r) {
-                count[octant(&q) + 1] += 1;
-                unbinned.push(q);
-                order.push(i as u32);
-            }
+        // Counting sort by octant (the direction's sign bits, which are the reciprocal's:
+        // 1/(-0.0) is -inf), then each query built once, straight into its slot.
+        let keys = &mut self.order;
+        keys.clear();
+        let mut count = [0u32; 10];
+        for r in rays {
+            let d = r.dir;
+            let k = if r.is_valid() {
+                (d.x.is_sign_negative() as u32)
+                    | (d.y.is_sign_negative() as u32) << 1
+                    | (d.z.is_sign_negative() as u32) << 2
+            } else {
+                8
+            };
+            count[k as usize + 1] += 1;
+            keys.push(k);
         }
-        for o in 0..8 {
+        for o in 0..9 {
             count[o + 1] += count[o];
         }
-        let n = unbinned.len();
+        let n = count[8] as usize;
         let mut next = count;
-        let blank = StreamRay::default();
         self.rays.clear();
-        self.rays.resize(n, blank);
+        self.rays.resize(n, StreamRay::default());
         self.index.clear();
         self.index.resize(n, 0);
-        let blank_query = unbinned.first().copied();
         self.queries.clear();
-        if let Some(b) = blank_query {
-            self.queries.resize(n, b);
+        if let Some(r) = rays.iter().find(|r| r.is_valid()) {
+            let q = RayQuery::new(r).expect("a valid ray");
+            self.queries.resize(n, q);
         }
-        for (q, &i) in unbinned.iter().zip(&order) {
-            let o = octant(q);
-            let s = next[o] as usize;
-            next[o] += 1;
-            self.queries[s] = *q;
-            self.index[s] = i;
+        for (i, (r, &k)) in rays.iter().zip(keys.iter()).enumerate() {
+            if k == 8 {
+                continue;
+            }
+            let q = RayQuery::new(r).expect("validity checked above");
+            let s = next[k as usize] as usize;
+            next[k as usize] += 1;
+            self.queries[s] = q;
+            self.index[s] = i as u32;
             self.rays[s] = StreamRay {
                 o: q.origin.to_array(),
                 tmin: q.tmin,
@@ -136,13 +135,11 @@ impl Scratch {
                 _pad: 0.0,
             };
         }
-        self.unbinned = unbinned;
-        self.order = order;
         self.best.clear();
         self.best.resize(n, None);
         self.done.clear();
         self.done.resize(n, false);
-        count
+        count[..9].try_into().expect("nine bin starts")
     }
 }
 
