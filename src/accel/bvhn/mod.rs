@@ -38,5 +38,5 @@ mod tree;
 
 pub use node::{Bvh4Node, Bvh8Node, BvhNode, NodeWidth, Width};
 pub use packet::PACKET_MIN_ACTIVE;
-pub use stream::STREAM_MIN_RAYS;
+pub use stream::{STREAM_MIN_BATCH, STREAM_MIN_RAYS, prefers_stream};
 pub use tree::{Bvh, Bvh4, Bvh8};

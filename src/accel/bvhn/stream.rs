@@ -338,3 +338,37 @@ pub fn tune(k: usize, default: u32) -> u32 {
     })[k]
     .unwrap_or(default)
 }
+
+/// Batches with fewer rays go through the packet kernels.
+pub const STREAM_MIN_BATCH: usize = 128;
+
+/// Whether a batch is better traced as a stream than as packets: at least
+/// [`STREAM_MIN_BATCH`] rays, and most of its 16-ray packets incoherent (their rays
+/// fall into more than two groups of direction octant and dominant axis, which sends a
+/// packet ray by ray: see `packet_setup.rs`).
+pub fn prefers_stream(rays: &[Ray]) -> bool {
+    if rays.len() < STREAM_MIN_BATCH {
+        return false;
+    }
+    let incoherent = rays
+        .chunks(crate::simd::PACKET_WIDTH)
+        .filter(|packet| {
+            let groups = packet.iter().fold(0u32, |g, r| {
+                let (d, a) = (r.dir, r.dir.abs());
+                let kz = if a.x >= a.y && a.x >= a.z {
+                    0
+                } else if a.y >= a.z {
+                    1
+                } else {
+                    2
+                };
+                let octant = (d.x.is_sign_negative() as u32)
+                    | (d.y.is_sign_negative() as u32) << 1
+                    | (d.z.is_sign_negative() as u32) << 2;
+                g | 1 << (octant * 3 + kz)
+            });
+            groups.count_ones() > 2
+        })
+        .count();
+    2 * incoherent > rays.len().div_ceil(crate::simd::PACKET_WIDTH)
+}
