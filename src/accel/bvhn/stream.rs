@@ -13,26 +13,46 @@
 //! pixel order, which already groups neighbouring origins). At an interior node each ray
 //! of the list is tested against all N children at once (the single-ray N-wide slab
 //! test, with the same arithmetic and the same conservative far-plane scale as
-//! `single.rs`), and its id is appended to the list of every child it enters. A list that
+//! `single.rs`) and its child mask stored; then each entered child's list is compacted
+//! from the masks, sixteen ids a step (`simd::compact`). Children are pushed far to near
+//! by their rays' mean entry distance, and prefetched as they are pushed. A list that
 //! has shrunk to fewer than [`STREAM_MIN_RAYS`] rays finishes its subtree ray by ray
 //! (`closest_from` / `any_from`), as DRST does. Leaves run the single-ray leaf kernels
 //! (`leaf_closest` / `leaf_any`, the watertight test with its scalar edge fallback), so
 //! every hit is the scalar oracle's, bit for bit: `t`, `u`, `v` and the primitive (an
 //! exact tie in `t` between two primitives may go to either, as for the packets).
 //!
+//! What did not pay (bunny, 1 thread, `bench --modes bvh8-stream`; Mrays/s):
+//! - Appending each ray's id to its children's lists as it is tested (one pass): the
+//!   list counts were a loop-carried chain through memory. Diffuse 5.55-5.71, primary
+//!   21-22; a branch-free append (every child's slot written, its count advanced by the
+//!   mask bit) 6.16-6.33 diffuse but 17-20 primary. The two passes: 7.58-7.69 diffuse,
+//!   26.4-26.6 primary (separate runs on a quiet machine).
+//! - Sorting a bin's rays by origin or direction keys was not tried on purpose: which
+//!   rays enter a node does not depend on their order in the list, and a bin of a band
+//!   (about a thousand rays) fits in L2, so the order only moves gathers within L2.
+//! - Primary and shadow rays: their 16-ray packets (`packet.rs`, one node test for 16
+//!   rays, one triangle test for 16 rays) stay 2x faster than this one-ray-per-test
+//!   kernel (bunny primary 53.8 against 24.8), so `SceneAccel` streams only batches
+//!   whose packets are incoherent ([`prefers_stream`]).
+//!
 //! Lists live in one arena: a node's children get `N` slots of the parent list's length
 //! each, above everything still on the stack; an entry popped from the stack frees what
 //! lies above its parent's block (the stack is LIFO, so everything there is finished).
 
-use super::node::{BvhNode, NodeWidth, Width, is_leaf};
-use super::tree::Bvh;
+use super::node::{BvhNode, NodeWidth, Width, is_leaf, leaf_range};
+use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
+use crate::simd::prefetch::prefetch;
 use std::cell::RefCell;
 
-/// Lists shorter than this finish their subtree ray by ray.
+/// Lists shorter than this finish their subtree ray by ray. 1 (only leaves ray by
+/// ray), 2 and 3 measured within 3 % of each other on the bunny's diffuse rays
+/// (6.80-7.17 Mrays/s, interleaved runs); 4 and 8 were 6 % slower (6.61, 6.65
+/// against 7.06).
 pub const STREAM_MIN_RAYS: u32 = 2;
 
 /// One ray as the node test reads it: 48 bytes, so a gathered ray touches one cache line
@@ -65,6 +85,7 @@ struct Entry {
 #[derive(Default)]
 struct Scratch {
     rays: Vec<StreamRay>,
+    /// The query of each ray of the caller's batch, in its order.
     queries: Vec<RayQuery>,
     /// Index in the caller's batch of each binned ray.
     index: Vec<u32>,
@@ -86,22 +107,35 @@ impl Scratch {
     /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
     /// first binned ray of each octant (and the end).
     fn bin(&mut self, rays: &[Ray]) -> [u32; 9] {
-        // Counting sort by octant (the direction's sign bits, which are the reciprocal's:
-        // 1/(-0.0) is -inf), then each query built once, straight into its slot.
+        // Each query is built once, in the caller's order (an invalid ray gets a
+        // placeholder no binned ray refers to); then a counting sort by octant (the
+        // direction's sign bits, which are the reciprocal's: 1/(-0.0) is -inf) places
+        // the node-test records. Building the queries straight into their bin slots
+        // (after a pre-fill) measured the same: 6.79-7.22 against 6.68-7.05 Mrays/s on
+        // the bunny's diffuse rays, interleaved runs.
         let keys = &mut self.order;
         keys.clear();
+        self.queries.clear();
         let mut count = [0u32; 10];
+        let mut placeholder = None;
         for r in rays {
-            let d = r.dir;
-            let k = if r.is_valid() {
-                (d.x.is_sign_negative() as u32)
-                    | (d.y.is_sign_negative() as u32) << 1
-                    | (d.z.is_sign_negative() as u32) << 2
-            } else {
-                8
+            let (k, q) = match RayQuery::new(r) {
+                Some(q) => {
+                    let d = r.dir;
+                    let k = (d.x.is_sign_negative() as u32)
+                        | (d.y.is_sign_negative() as u32) << 1
+                        | (d.z.is_sign_negative() as u32) << 2;
+                    placeholder = Some(q);
+                    (k, q)
+                }
+                None => match placeholder {
+                    Some(q) => (8, q),
+                    None => (8, Self::placeholder()),
+                },
             };
             count[k as usize + 1] += 1;
             keys.push(k);
+            self.queries.push(q);
         }
         for o in 0..9 {
             count[o + 1] += count[o];
@@ -112,19 +146,12 @@ impl Scratch {
         self.rays.resize(n, StreamRay::default());
         self.index.clear();
         self.index.resize(n, 0);
-        self.queries.clear();
-        if let Some(r) = rays.iter().find(|r| r.is_valid()) {
-            let q = RayQuery::new(r).expect("a valid ray");
-            self.queries.resize(n, q);
-        }
-        for (i, (r, &k)) in rays.iter().zip(keys.iter()).enumerate() {
+        for (i, (q, &k)) in self.queries.iter().zip(keys.iter()).enumerate() {
             if k == 8 {
                 continue;
             }
-            let q = RayQuery::new(r).expect("validity checked above");
             let s = next[k as usize] as usize;
             next[k as usize] += 1;
-            self.queries[s] = q;
             self.index[s] = i as u32;
             self.rays[s] = StreamRay {
                 o: q.origin.to_array(),
@@ -140,6 +167,12 @@ impl Scratch {
         self.done.clear();
         self.done.resize(n, false);
         count[..9].try_into().expect("nine bin starts")
+    }
+
+    /// A query for an invalid ray's slot in `queries` (never read).
+    #[cold]
+    fn placeholder() -> RayQuery {
+        RayQuery::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X)).expect("a valid ray")
     }
 }
 
@@ -226,7 +259,7 @@ where
         });
         while let Some(e) = s.stack.pop() {
             let (start, end) = (e.start as usize, (e.start + e.len) as usize);
-            if is_leaf(e.node) || e.len < tune(0, STREAM_MIN_RAYS) {
+            if is_leaf(e.node) || e.len < STREAM_MIN_RAYS {
                 for k in start..end {
                     let id = s.arena[k] as usize;
                     self.finish::<ANY>(s, id, e.node);
@@ -286,7 +319,19 @@ where
                 n += 1;
             }
             let new_top = (top + block) as u32;
+            // The children's nodes (all four lines) and their leaves' first triangle
+            // group are prefetched as they are pushed: 1M-triangle mesh, diffuse rays,
+            // interleaved runs: 4.53/4.57 Mrays/s without, 4.25-4.68 with the nodes
+            // only, 4.76/4.77 with both; the bunny's diffuse rays unchanged (6.80-6.86).
             for &(c, _) in &order[..n] {
+                let child = node.children[c];
+                if !is_leaf(child) {
+                    prefetch(&self.nodes[child as usize], 4);
+                } else if let Leaves::Triangles(groups) = &self.leaves
+                    && let Some(g) = groups.get(leaf_range(child).start)
+                {
+                    prefetch(g, 3);
+                }
                 s.stack.push(Entry {
                     node: node.children[c],
                     start: (top + c * stride) as u32,
@@ -300,7 +345,7 @@ where
     /// Ray `id` through the subtree `node` on its own (a leaf, or a short list).
     #[inline(always)]
     fn finish<const ANY: bool>(&self, s: &mut Scratch, id: usize, node: u32) {
-        let q = &s.queries[id];
+        let q = &s.queries[s.index[id] as usize];
         if ANY {
             if s.done[id] {
                 return;
@@ -327,16 +372,6 @@ where
             }
         }
     }
-}
-
-pub fn tune(k: usize, default: u32) -> u32 {
-    static V: std::sync::OnceLock<Vec<Option<u32>>> = std::sync::OnceLock::new();
-    V.get_or_init(|| {
-        (0..8)
-            .map(|i| std::env::var(format!("TUNE{i}")).ok().and_then(|v| v.parse().ok()))
-            .collect()
-    })[k]
-    .unwrap_or(default)
 }
 
 /// Batches with fewer rays go through the packet kernels.
