@@ -7,7 +7,9 @@
 //! `v * (1/|v|)`; shadow and diffuse rays start from the primary hits of the mode under
 //! test's own structure, computed once untimed; rays are generated and traced in 8x8
 //! tiles (ordered as 4x4 blocks, so 16 consecutive rays are a 4x4 pixel block and 8 a
-//! 4x2 block), and bands of 8 rows are handed to threads dynamically.
+//! 4x2 block), and bands of 8 rows are handed to threads dynamically. Stream modes
+//! (`bvh4-stream`, `bvh8-stream`) get a band's valid rays, in that tile order, as one
+//! batch (Embree's harness hands `rtcIntersect1M` one tile of 64 rays).
 
 pub mod compare;
 pub mod converge;
