@@ -41,6 +41,7 @@
 //! lies above its parent's block (the stack is LIFO, so everything there is finished).
 
 use super::node::{BvhNode, NodeWidth, Width, is_leaf, leaf_range};
+use super::stack::insert_far_to_near;
 use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
@@ -310,13 +311,7 @@ where
                     continue;
                 }
                 let key = if ANY { 0.0 } else { sum.as_ref()[c] / k as f32 };
-                let mut j = n;
-                while j > 0 && order[j - 1].1 < key {
-                    order[j] = order[j - 1];
-                    j -= 1;
-                }
-                order[j] = (c, key);
-                n += 1;
+                insert_far_to_near(&mut order, &mut n, c, key);
             }
             let new_top = (top + block) as u32;
             // The children's nodes (all four lines) and their leaves' first triangle
