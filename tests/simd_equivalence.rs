@@ -292,7 +292,10 @@ where
             );
         } else {
             assert_eq!(got[i], clean[i], "lane {i} changed by an invalid neighbour");
-            assert_eq!(streamed[i], clean[i], "stream: ray {i} changed by an invalid one");
+            assert_eq!(
+                streamed[i], clean[i],
+                "stream: ray {i} changed by an invalid one"
+            );
             assert_eq!(stream_occ[i], clean_occ[i], "stream: ray {i} occlusion");
         }
     }

@@ -22,8 +22,8 @@ pub mod spatial;
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvhn::{
-    Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, STREAM_MIN_BATCH, STREAM_MIN_RAYS, Width,
-    prefers_stream,
+    Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, STREAM_MIN_BATCH,
+    STREAM_MIN_RAYS, Width, prefers_stream,
 };
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
