@@ -206,7 +206,7 @@ fn bench_prints_the_protocol_fields_and_modes_agree() {
         .lines()
         .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
         .collect();
-    assert_eq!(rows.len(), 15, "5 modes x 3 workloads");
+    assert_eq!(rows.len(), 21, "7 modes x 3 workloads");
     let fields = [
         "tracer",
         "mode",

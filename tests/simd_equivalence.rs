@@ -1,6 +1,6 @@
 //! Scalar-vs-SIMD equivalence: the scalar BVH2 traversal (the oracle), and the
-//! single-ray SIMD kernel and the packet kernel of both the BVH4 and the BVH8, get the
-//! same rays and must return bit-identical hits (primitive, `t`, `u`, `v`: the kernels
+//! single-ray SIMD kernel, the packet kernel and the stream kernel of both the BVH4 and
+//! the BVH8, get the same rays and must return bit-identical hits (primitive, `t`, `u`, `v`: the kernels
 //! are twins of the scalar test, the same operations in the same order) and the same
 //! occlusion answer.
 
@@ -48,6 +48,23 @@ where
     bvhn.closest_hit_batch(rays, &mut packet);
     let mut packet_occ = vec![false; rays.len()];
     bvhn.any_hit_batch(rays, &mut packet_occ);
+    // The stream kernel: the whole set as one batch, and in batches of 1, 7 and 300.
+    let mut stream = vec![None; rays.len()];
+    bvhn.closest_stream(rays, &mut stream);
+    let mut stream_occ = vec![false; rays.len()];
+    bvhn.any_stream(rays, &mut stream_occ);
+    let mut chunked = vec![None; rays.len()];
+    let mut chunked_occ = vec![false; rays.len()];
+    let mut at = 0;
+    for (k, size) in [1usize, 7, 300].into_iter().cycle().enumerate() {
+        if at >= rays.len() {
+            break;
+        }
+        let end = (at + size + k % 3).min(rays.len());
+        bvhn.closest_stream(&rays[at..end], &mut chunked[at..end]);
+        bvhn.any_stream(&rays[at..end], &mut chunked_occ[at..end]);
+        at = end;
+    }
     let mut bad = Vec::new();
     for (i, r) in rays.iter().enumerate() {
         let want = scalar.closest_hit(r);
@@ -63,12 +80,24 @@ where
                 packet[i]
             ));
         }
+        for (kind, got) in [("stream", stream[i]), ("stream-chunked", chunked[i])] {
+            if !same_hit(want, got) {
+                bad.push(format!("ray {i}: scalar {want:?} vs bvh{N}-{kind} {got:?}"));
+            }
+        }
         let occ = scalar.any_hit(r);
-        if occ != bvhn.any_single(r) || occ != packet_occ[i] {
+        if occ != bvhn.any_single(r)
+            || occ != packet_occ[i]
+            || occ != stream_occ[i]
+            || occ != chunked_occ[i]
+        {
             bad.push(format!(
-                "ray {i}: bvh{N} occlusion scalar {occ}, single {}, packet {}",
+                "ray {i}: bvh{N} occlusion scalar {occ}, single {}, packet {}, stream {}, \
+                 stream-chunked {}",
                 bvhn.any_single(r),
-                packet_occ[i]
+                packet_occ[i],
+                stream_occ[i],
+                chunked_occ[i]
             ));
         }
     }
@@ -180,6 +209,15 @@ where
     }
 }
 
+/// The procedural tessellated mesh (the bench's Bunny-scale stand-in, smaller) under
+/// incoherent rays: random origins inside and around it, random directions.
+#[test]
+fn procedural_mesh_under_incoherent_rays_agrees() {
+    let tris = procedural_mesh(20_000);
+    let rays = random_rays(&bounds_of(&tris), 12_000, 31);
+    check("procedural mesh, random rays", &tris, &rays);
+}
+
 #[test]
 fn random_and_axis_parallel_rays_agree() {
     let tris = triangle_soup(4000, 11);
@@ -232,16 +270,44 @@ where
     bvhn.closest_hit_batch(&poisoned, &mut got);
     let mut occ = vec![true; rays.len()];
     bvhn.any_hit_batch(&poisoned, &mut occ);
+    // The stream kernel, over answers pre-filled with a hit, so a ray it skipped shows.
+    let filler = Some(Hit {
+        t: -1.0,
+        prim: 7,
+        u: 0.0,
+        v: 0.0,
+    });
+    let mut streamed = vec![filler; rays.len()];
+    bvhn.closest_stream(&poisoned, &mut streamed);
+    let mut stream_occ = vec![true; rays.len()];
+    bvhn.any_stream(&poisoned, &mut stream_occ);
+    let mut clean_occ = vec![false; rays.len()];
+    bvhn.any_hit_batch(&rays, &mut clean_occ);
+    assert!(clean.iter().filter(|h| h.is_some()).count() > rays.len() / 4);
     for i in 0..rays.len() {
         if i % 5 == 0 {
             assert!(
-                got[i].is_none() && !occ[i],
+                got[i].is_none() && !occ[i] && streamed[i].is_none() && !stream_occ[i],
                 "invalid ray {i} reported a hit"
             );
         } else {
             assert_eq!(got[i], clean[i], "lane {i} changed by an invalid neighbour");
+            assert_eq!(
+                streamed[i], clean[i],
+                "stream: ray {i} changed by an invalid one"
+            );
+            assert_eq!(stream_occ[i], clean_occ[i], "stream: ray {i} occlusion");
         }
     }
+    // A batch of invalid rays only, and an empty batch.
+    let mut only_bad = vec![filler; bad.len()];
+    bvhn.closest_stream(&bad, &mut only_bad);
+    assert!(only_bad.iter().all(|h| h.is_none()));
+    let mut only_bad_occ = vec![true; bad.len()];
+    bvhn.any_stream(&bad, &mut only_bad_occ);
+    assert!(only_bad_occ.iter().all(|o| !o));
+    bvhn.closest_stream(&[], &mut []);
+    bvhn.any_stream(&[], &mut []);
 }
 
 /// Spheres through packets: the lane-parallel sphere test (the SIMD twin of
@@ -272,9 +338,15 @@ where
     bvhn.closest_hit_batch(&rays, &mut packet);
     let mut occ = vec![false; rays.len()];
     bvhn.any_hit_batch(&rays, &mut occ);
+    let mut stream = vec![None; rays.len()];
+    bvhn.closest_stream(&rays, &mut stream);
+    let mut stream_occ = vec![false; rays.len()];
+    bvhn.any_stream(&rays, &mut stream_occ);
     let mut hits = 0;
     for (i, r) in rays.iter().enumerate() {
         let want = scalar.closest_hit(r);
+        assert_eq!(stream[i], want, "ray {i}: stream");
+        assert_eq!(stream_occ[i], want.is_some(), "ray {i}: stream occlusion");
         assert_eq!(
             packet[i].map(|h| (h.prim, h.t)),
             want.map(|h| (h.prim, h.t)),

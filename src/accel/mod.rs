@@ -21,7 +21,10 @@ pub mod spatial;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
-pub use bvhn::{Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, Width};
+pub use bvhn::{
+    Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, STREAM_MIN_BATCH,
+    STREAM_MIN_RAYS, Width, prefers_stream,
+};
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
 pub use instance::InstanceAccel;
@@ -71,6 +74,18 @@ pub trait Accel: Send + Sync {
         for (r, o) in rays.iter().zip(out.iter_mut()) {
             *o = self.any_hit(r);
         }
+    }
+
+    /// Closest hits for a large batch of rays (hundreds to thousands, incoherent ones
+    /// above all) traced as one stream. Structures with a stream kernel (BVH4/BVH8:
+    /// `bvhn/stream.rs`) override this; the others trace the batch as a batch.
+    fn closest_hit_stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.closest_hit_batch(rays, out);
+    }
+
+    /// Occlusion for a large batch of rays traced as one stream.
+    fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        self.any_hit_batch(rays, out);
     }
 
     /// Closest hits for one packet of rays in structure-of-arrays form (lanes
@@ -387,7 +402,8 @@ impl SceneAccel {
     }
 
     /// Closest hits for a batch of rays, through each kind's batch entry point (BVH4:
-    /// 16 consecutive rays as one packet), merged by distance exactly as
+    /// 16 consecutive rays as one packet; a batch that [`prefers_stream`], of at least
+    /// [`STREAM_MIN_BATCH`] mostly incoherent rays, as one stream), merged by distance exactly as
     /// [`closest_hit`](Self::closest_hit) merges them: each later kind searches only in
     /// front of the hit found so far, so the results are identical. `scratch` is reused
     /// between calls.
@@ -408,8 +424,14 @@ impl SceneAccel {
             u: h.u,
             v: h.v,
         };
+        // Incoherent batches (diffuse-like queues) go through the stream kernel.
+        let stream = prefers_stream(rays);
         if let Some(a) = &self.triangles {
-            a.closest_hit_batch(rays, hits);
+            if stream {
+                a.closest_hit_stream(rays, hits);
+            } else {
+                a.closest_hit_batch(rays, hits);
+            }
             for (o, h) in out.iter_mut().zip(hits.iter()) {
                 *o = h.map(|h| scene_hit(h, PrimRef::Triangle));
             }
@@ -424,7 +446,11 @@ impl SceneAccel {
                 }
                 r
             }));
-            a.closest_hit_batch(clipped, hits);
+            if stream {
+                a.closest_hit_stream(clipped, hits);
+            } else {
+                a.closest_hit_batch(clipped, hits);
+            }
             for (o, h) in out.iter_mut().zip(hits.iter()) {
                 if let Some(h) = h {
                     *o = Some(scene_hit(*h, PrimRef::Sphere));
@@ -445,13 +471,20 @@ impl SceneAccel {
     }
 
     /// Occlusion for a batch of rays: each kind's batch entry point over the rays no
-    /// earlier kind found blocked. Same answers as [`any_hit`](Self::any_hit).
+    /// earlier kind found blocked. Incoherent batches go through the stream kernel, as in
+    /// [`closest_hit_batch`](Self::closest_hit_batch). Same answers as [`any_hit`](Self::any_hit).
     pub fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool], scratch: &mut BatchScratch) {
         debug_assert_eq!(rays.len(), out.len());
         out.fill(false);
         let kinds = [self.triangles.as_deref(), self.spheres.as_deref()];
+        let stream = prefers_stream(rays);
         let mut first = true;
         for a in kinds.into_iter().flatten() {
+            if first && stream {
+                a.any_hit_stream(rays, out);
+                first = false;
+                continue;
+            }
             if first {
                 a.any_hit_batch(rays, out);
                 first = false;
@@ -468,7 +501,11 @@ impl SceneAccel {
             }
             scratch.blocked.clear();
             scratch.blocked.resize(scratch.rays.len(), false);
-            a.any_hit_batch(&scratch.rays, &mut scratch.blocked);
+            if stream {
+                a.any_hit_stream(&scratch.rays, &mut scratch.blocked);
+            } else {
+                a.any_hit_batch(&scratch.rays, &mut scratch.blocked);
+            }
             for (&i, &b) in scratch.index.iter().zip(scratch.blocked.iter()) {
                 out[i as usize] = b;
             }

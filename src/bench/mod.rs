@@ -7,7 +7,9 @@
 //! `v * (1/|v|)`; shadow and diffuse rays start from the primary hits of the mode under
 //! test's own structure, computed once untimed; rays are generated and traced in 8x8
 //! tiles (ordered as 4x4 blocks, so 16 consecutive rays are a 4x4 pixel block and 8 a
-//! 4x2 block), and bands of 8 rows are handed to threads dynamically.
+//! 4x2 block), and bands of 8 rows are handed to threads dynamically. Stream modes
+//! (`bvh4-stream`, `bvh8-stream`) get a band's valid rays, in that tile order, as one
+//! batch (Embree's harness hands `rtcIntersect1M` one tile of 64 rays).
 
 pub mod compare;
 pub mod converge;
@@ -213,6 +215,11 @@ pub trait TraceMode: Send + Sync {
         let aos: [Ray; 16] = std::array::from_fn(|k| rays.ray(k));
         self.occluded(&aos[..rays.len], out);
     }
+    /// Whether the mode takes a whole band's rays as one batch (stream modes, as
+    /// Embree's `rtcIntersect1M`), instead of one tile's at a time.
+    fn takes_band(&self) -> bool {
+        false
+    }
     fn build_ms(&self) -> f64;
     /// Bytes of the structure traced (nodes and leaves).
     fn memory_bytes(&self) -> usize;
@@ -280,13 +287,42 @@ impl TraceMode for Batched {
     }
 }
 
+/// The stream entry points of [`Accel`]: a band's valid rays as one batch.
+pub struct Streamed {
+    pub name: &'static str,
+    pub accel: Box<dyn Accel>,
+}
+
+impl TraceMode for Streamed {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.accel.closest_hit_stream(rays, out);
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        self.accel.any_hit_stream(rays, out);
+    }
+    fn takes_band(&self) -> bool {
+        true
+    }
+    fn build_ms(&self) -> f64 {
+        self.accel.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.accel.info().memory_bytes
+    }
+}
+
 /// The modes `packet-render bench` knows, by name.
 pub const MODES: &[&str] = &[
     "scalar-bvh2",
     "bvh4-single",
     "bvh4-packet",
+    "bvh4-stream",
     "bvh8-single",
     "bvh8-packet",
+    "bvh8-stream",
 ];
 
 /// Builds a mode over `tris` (the mesh in file order).
@@ -311,6 +347,14 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
         })),
         "bvh8-packet" => Some(Box::new(Batched {
             name: "bvh8-packet",
+            accel: AccelKind::Bvh8.build(tris),
+        })),
+        "bvh4-stream" => Some(Box::new(Streamed {
+            name: "bvh4-stream",
+            accel: AccelKind::Bvh4.build(tris),
+        })),
+        "bvh8-stream" => Some(Box::new(Streamed {
+            name: "bvh8-stream",
             accel: AccelKind::Bvh8.build(tris),
         })),
         _ => None,
@@ -436,6 +480,10 @@ impl Protocol {
                 // A tile's valid rays in order, as four SoA packets of sixteen for packet
                 // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
                 let soa = mode.takes_packets();
+                // Stream modes: the band's valid rays and their pixels, traced at the end.
+                let band_mode = mode.takes_band();
+                let mut band_rays = Vec::new();
+                let mut band_slots = Vec::new();
                 let mut packets = [RayPacket::default(); 4];
                 let mut rays = Vec::with_capacity(64);
                 let mut camera = RayPacket::default();
@@ -486,6 +534,11 @@ impl Protocol {
                             }
                         }
                         count += n as u64;
+                        if band_mode {
+                            band_rays.extend_from_slice(&rays[..n]);
+                            band_slots.extend_from_slice(&slots[..n]);
+                            continue;
+                        }
                         for b in 0..n.div_ceil(16) {
                             let len = (n - 16 * b).min(16);
                             packets[b].len = len;
@@ -521,9 +574,42 @@ impl Protocol {
                         }
                     }
                 }
+                if band_mode {
+                    self.trace_band(mode, workload, &band_rays, &band_slots, t_band, prim_band);
+                }
                 count
             })
             .sum()
+    }
+
+    /// A stream mode's band: `rays` traced as one batch, the answer of ray `k` written
+    /// to band pixel `slots[k]`.
+    fn trace_band(
+        &self,
+        mode: &dyn TraceMode,
+        workload: Workload,
+        rays: &[Ray],
+        slots: &[usize],
+        t_band: &mut [f32],
+        prim_band: &mut [u32],
+    ) {
+        if workload == Workload::Shadow {
+            let mut occ = vec![false; rays.len()];
+            mode.occluded(rays, &mut occ);
+            for (&o, &s) in occ.iter().zip(slots) {
+                t_band[s] = if o { 1.0 } else { 0.0 };
+                prim_band[s] = 0;
+            }
+        } else {
+            let mut hits = vec![None; rays.len()];
+            mode.closest(rays, &mut hits);
+            for (h, &s) in hits.iter().zip(slots) {
+                (t_band[s], prim_band[s]) = match h {
+                    Some(hh) => (hh.t, hh.prim),
+                    None => (f32::NAN, u32::MAX),
+                };
+            }
+        }
     }
 
     /// The untimed primary pass that shadow and diffuse rays start from.

@@ -10,7 +10,9 @@
 //! from comparisons; [`Lanes::bitmask`] turns one into an integer with bit `i` for lane `i`.
 
 pub mod camera;
+pub mod compact;
 pub mod kernels;
+pub mod prefetch;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 use wide::{f32x4, f32x8, f32x16};

@@ -17,12 +17,14 @@
 //! tests a node's children against the interval bounds of all its rays
 //! (`PacketBounds`), then runs the per-lane slab test only for children some lane may
 //! enter; a part with few active rays left finishes a subtree ray by ray, as Embree's
-//! hybrid traversal does.
+//! hybrid traversal does. Large incoherent batches go through the stream kernel
+//! (`closest_stream`/`any_stream`): the rays binned by octant, each node tested once for
+//! the list of rays that reached it (`stream.rs`).
 //!
 //! One concern per file, as Embree keeps node types, node intersectors, single-ray and
 //! hybrid (packet) traversal apart: `node.rs` (layout and leaf encoding), `stack.rs`,
 //! `tree.rs` (the structure, its build and the `Accel` entry points), `collapse.rs`,
-//! `single.rs`, `packet_setup.rs`, `packet_bounds.rs` and `packet.rs`.
+//! `single.rs`, `packet_setup.rs`, `packet_bounds.rs`, `packet.rs` and `stream.rs`.
 
 mod collapse;
 mod node;
@@ -31,10 +33,12 @@ mod packet_bounds;
 mod packet_setup;
 mod single;
 mod stack;
+mod stream;
 #[cfg(test)]
 mod tests;
 mod tree;
 
 pub use node::{Bvh4Node, Bvh8Node, BvhNode, NodeWidth, Width};
 pub use packet::PACKET_MIN_ACTIVE;
+pub use stream::{STREAM_MIN_BATCH, STREAM_MIN_RAYS, prefers_stream};
 pub use tree::{Bvh, Bvh4, Bvh8};

@@ -4,7 +4,7 @@
 use super::node::{NodeWidth, Width, is_leaf, leaf_range};
 use super::packet_bounds::{PACKET_BOUNDS_MIN_NODES, PacketBounds};
 use super::packet_setup::{PacketRays, PacketSetup, for_each_bit, lane_query};
-use super::stack::{PACKET_STACK, Stack};
+use super::stack::{PACKET_STACK, Stack, insert_far_to_near};
 use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
 use crate::geometry::{Hit, LaneRays, PrimHit, ROBUST_FAR_SCALE, RayQuery, intersect_triangle};
@@ -134,13 +134,7 @@ where
                         enters[c] = enter;
                         // insertion sort, far to near, by the representative lane's entry
                         let key = enter.to_array().as_ref()[rep];
-                        let mut j = n;
-                        while j > 0 && order[j - 1].1 < key {
-                            order[j] = order[j - 1];
-                            j -= 1;
-                        }
-                        order[j] = (c, key);
-                        n += 1;
+                        insert_far_to_near(&mut order, &mut n, c, key);
                     }
                 }
                 if n > 0 {

@@ -162,7 +162,7 @@ where
     }
 
     #[inline(always)]
-    fn leaf_closest(&self, q: &RayQuery, r: u32, mut tmax: f32) -> Option<Hit> {
+    pub(super) fn leaf_closest(&self, q: &RayQuery, r: u32, mut tmax: f32) -> Option<Hit> {
         let mut best = None;
         match &self.leaves {
             Leaves::Triangles(groups) => {
@@ -196,7 +196,7 @@ where
     }
 
     #[inline(always)]
-    fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
+    pub(super) fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
         match &self.leaves {
             Leaves::Triangles(groups) => groups[leaf_range(r)]
                 .iter()

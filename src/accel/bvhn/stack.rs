@@ -1,4 +1,5 @@
-//! The fixed-capacity traversal stacks of the single-ray and packet kernels.
+//! The fixed-capacity traversal stacks of the single-ray and packet kernels, and the
+//! far-to-near insertion of the children a node pushes (packet and stream kernels).
 
 /// Single-ray traversal stack capacity. A node pushes at most N - 1 entries per level it
 /// descends and the BVH2 depth bound (`bvh2::STACK_SIZE`) bounds the levels, so
@@ -63,4 +64,23 @@ impl<const CAP: usize> Stack<(u32, f32), CAP> {
             run[j] = x;
         }
     }
+}
+
+/// Inserts child `c` with entry distance `key` into `order[..*n]`, kept sorted far to
+/// near (so pushing it in order leaves the nearest on top), and counts it in `n`.
+/// Equal keys keep their insertion order.
+#[inline(always)]
+pub(super) fn insert_far_to_near<const N: usize>(
+    order: &mut [(usize, f32); N],
+    n: &mut usize,
+    c: usize,
+    key: f32,
+) {
+    let mut j = *n;
+    while j > 0 && order[j - 1].1 < key {
+        order[j] = order[j - 1];
+        j -= 1;
+    }
+    order[j] = (c, key);
+    *n += 1;
 }

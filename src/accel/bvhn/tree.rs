@@ -184,6 +184,14 @@ where
         }
     }
 
+    fn closest_hit_stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.closest_stream(rays, out);
+    }
+
+    fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        self.any_stream(rays, out);
+    }
+
     fn closest_hit_packet(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
         self.packet_closest::<Packet, _>(packet, out);
     }

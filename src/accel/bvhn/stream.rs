@@ -1,0 +1,404 @@
+//! Stream traversal: a batch of hundreds to thousands of rays traced node by node, each
+//! node fetched once for every ray of the batch that reaches it, in the spirit of
+//! Barringer and Akenine-Möller, "Dynamic Ray Stream Traversal" (ACM TOG 33(4), SIGGRAPH
+//! 2014: a depth-first walk of the tree carrying the list of ray ids that entered each
+//! node, each child getting the sub-list of rays that enter it) and of Fuetterling,
+//! Lojewski, Pfreundt and Ebert, "Efficient Ray Tracing Kernels for Modern CPU
+//! Architectures" (JCGT 4(5), 2015: ordered ray stream traversal, children visited in
+//! the order of the rays' mean entry distance).
+//!
+//! The rays are binned by direction octant first (every ray of a bin shares the near and
+//! far slab planes, so a node's six plane vectors are loaded once per node and bin), and
+//! within a bin keep the caller's order (the bench and the wavefront hand rays over in
+//! pixel order, which already groups neighbouring origins). At an interior node each ray
+//! of the list is tested against all N children at once (the single-ray N-wide slab
+//! test, with the same arithmetic and the same conservative far-plane scale as
+//! `single.rs`) and its child mask stored; then each entered child's list is compacted
+//! from the masks, sixteen ids a step (`simd::compact`). Children are pushed far to near
+//! by their rays' mean entry distance, and prefetched as they are pushed. A list that
+//! has shrunk to fewer than [`STREAM_MIN_RAYS`] rays finishes its subtree ray by ray
+//! (`closest_from` / `any_from`), as DRST does. Leaves run the single-ray leaf kernels
+//! (`leaf_closest` / `leaf_any`, the watertight test with its scalar edge fallback), so
+//! every hit is the scalar oracle's, bit for bit: `t`, `u`, `v` and the primitive (an
+//! exact tie in `t` between two primitives may go to either, as for the packets).
+//!
+//! What did not pay (bunny, 1 thread, `bench --modes bvh8-stream`; Mrays/s):
+//! - Appending each ray's id to its children's lists as it is tested (one pass): the
+//!   list counts were a loop-carried chain through memory. Diffuse 5.55-5.71, primary
+//!   21-22; a branch-free append (every child's slot written, its count advanced by the
+//!   mask bit) 6.16-6.33 diffuse but 17-20 primary. The two passes: 7.58-7.69 diffuse,
+//!   26.4-26.6 primary (separate runs on a quiet machine).
+//! - Sorting a bin's rays by origin or direction keys was not tried on purpose: which
+//!   rays enter a node does not depend on their order in the list, and a bin of a band
+//!   (about a thousand rays) fits in L2, so the order only moves gathers within L2.
+//! - Primary and shadow rays: their 16-ray packets (`packet.rs`, one node test for 16
+//!   rays, one triangle test for 16 rays) stay 2x faster than this one-ray-per-test
+//!   kernel (bunny primary 53.8 against 24.8), so `SceneAccel` streams only batches
+//!   whose packets are incoherent ([`prefers_stream`]).
+//!
+//! Lists live in one arena: a node's children get `N` slots of the parent list's length
+//! each, above everything still on the stack; an entry popped from the stack frees what
+//! lies above its parent's block (the stack is LIFO, so everything there is finished).
+
+use super::node::{BvhNode, NodeWidth, Width, is_leaf, leaf_range};
+use super::stack::insert_far_to_near;
+use super::tree::{Bvh, Leaves};
+use crate::accel::Primitives;
+use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
+use crate::simd::Lanes;
+use crate::simd::compact::{COMPACT_SLACK, select_ids};
+use crate::simd::prefetch::prefetch;
+use std::cell::RefCell;
+
+/// Lists shorter than this finish their subtree ray by ray. 1 (only leaves ray by
+/// ray), 2 and 3 measured within 3 % of each other on the bunny's diffuse rays
+/// (6.80-7.17 Mrays/s, interleaved runs); 4 and 8 were 6 % slower (6.61, 6.65
+/// against 7.06).
+pub const STREAM_MIN_RAYS: u32 = 2;
+
+/// One ray as the node test reads it: 48 bytes, so a gathered ray touches one cache line
+/// at most twice.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(16))]
+struct StreamRay {
+    o: [f32; 3],
+    tmin: f32,
+    inv: [f32; 3],
+    /// The end of the ray's interval: the closest hit so far; NaN once an occlusion
+    /// query is answered (a NaN far distance enters no child).
+    tmax: f32,
+    /// `inv * (1 + 2 gamma(3))`, the conservative far-plane scale of `single.rs`.
+    inv_far: [f32; 3],
+    _pad: f32,
+}
+
+/// A list of rays waiting to traverse the subtree `node`: ids `start..start + len` of
+/// the arena; `top` is where the arena is free once this entry is popped.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    node: u32,
+    start: u32,
+    len: u32,
+    top: u32,
+}
+
+/// The reusable buffers of one thread's stream traversals.
+#[derive(Default)]
+struct Scratch {
+    rays: Vec<StreamRay>,
+    /// The query of each ray of the caller's batch, in its order.
+    queries: Vec<RayQuery>,
+    /// Index in the caller's batch of each binned ray.
+    index: Vec<u32>,
+    /// The octant of each ray of the caller's batch (8: invalid).
+    order: Vec<u32>,
+    best: Vec<Option<Hit>>,
+    done: Vec<bool>,
+    arena: Vec<u32>,
+    /// The child mask of each ray of the list at hand.
+    masks: Vec<u32>,
+    stack: Vec<Entry>,
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+impl Scratch {
+    /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
+    /// first binned ray of each octant (and the end).
+    fn bin(&mut self, rays: &[Ray]) -> [u32; 9] {
+        // Each query is built once, in the caller's order (an invalid ray gets a
+        // placeholder no binned ray refers to); then a counting sort by octant (the
+        // direction's sign bits, which are the reciprocal's: 1/(-0.0) is -inf) places
+        // the node-test records. Building the queries straight into their bin slots
+        // (after a pre-fill) measured the same: 6.79-7.22 against 6.68-7.05 Mrays/s on
+        // the bunny's diffuse rays, interleaved runs.
+        let keys = &mut self.order;
+        keys.clear();
+        self.queries.clear();
+        let mut count = [0u32; 10];
+        let mut placeholder = None;
+        for r in rays {
+            let (k, q) = match RayQuery::new(r) {
+                Some(q) => {
+                    let d = r.dir;
+                    let k = (d.x.is_sign_negative() as u32)
+                        | (d.y.is_sign_negative() as u32) << 1
+                        | (d.z.is_sign_negative() as u32) << 2;
+                    placeholder = Some(q);
+                    (k, q)
+                }
+                None => match placeholder {
+                    Some(q) => (8, q),
+                    None => (8, Self::placeholder()),
+                },
+            };
+            count[k as usize + 1] += 1;
+            keys.push(k);
+            self.queries.push(q);
+        }
+        for o in 0..9 {
+            count[o + 1] += count[o];
+        }
+        let n = count[8] as usize;
+        let mut next = count;
+        self.rays.clear();
+        self.rays.resize(n, StreamRay::default());
+        self.index.clear();
+        self.index.resize(n, 0);
+        for (i, (q, &k)) in self.queries.iter().zip(keys.iter()).enumerate() {
+            if k == 8 {
+                continue;
+            }
+            let s = next[k as usize] as usize;
+            next[k as usize] += 1;
+            self.index[s] = i as u32;
+            self.rays[s] = StreamRay {
+                o: q.origin.to_array(),
+                tmin: q.tmin,
+                inv: q.inv_dir.to_array(),
+                tmax: q.tmax,
+                inv_far: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
+                _pad: 0.0,
+            };
+        }
+        self.best.clear();
+        self.best.resize(n, None);
+        self.done.clear();
+        self.done.resize(n, false);
+        count[..9].try_into().expect("nine bin starts")
+    }
+
+    /// A query for an invalid ray's slot in `queries` (never read).
+    #[cold]
+    fn placeholder() -> RayQuery {
+        RayQuery::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X)).expect("a valid ray")
+    }
+}
+
+/// A node's six plane vectors in the order an octant's rays read them.
+struct OctantPlanes<L: Lanes> {
+    near: [L; 3],
+    far: [L; 3],
+}
+
+impl<L: Lanes> OctantPlanes<L> {
+    #[inline(always)]
+    fn new<const N: usize>(node: &BvhNode<N>, octant: usize) -> Self {
+        let p = &node.planes;
+        let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
+        OctantPlanes {
+            near: near.map(|i| L::load(&p[i])),
+            far: near.map(|i| L::load(&p[if i >= 3 { i - 3 } else { i + 3 }])),
+        }
+    }
+
+    /// The single-ray slab test of `single.rs` (`NodeRay::test`), the same operations:
+    /// entry distances and the mask of the children entered.
+    #[inline(always)]
+    fn test(&self, r: &StreamRay) -> (L, L) {
+        let s = L::splat;
+        let d = |a: usize| (self.near[a] - s(r.o[a])) * s(r.inv[a]);
+        let f = |a: usize| (self.far[a] - s(r.o[a])) * s(r.inv_far[a]);
+        let enter = d(0).maxps(d(1).maxps(d(2).maxps(s(r.tmin))));
+        let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax * ROBUST_FAR_SCALE))));
+        (enter, enter.le(exit))
+    }
+}
+
+impl<P: Primitives, const N: usize> Bvh<P, N>
+where
+    Width<N>: NodeWidth,
+{
+    /// Closest hits of a batch of rays by stream traversal; the same answers as
+    /// [`closest_single`](Self::closest_single) for each ray.
+    pub fn closest_stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert!(out.len() >= rays.len(), "one answer per ray");
+        SCRATCH.with_borrow_mut(|s| {
+            self.stream::<false>(s, rays);
+            out[..rays.len()].fill(None);
+            for (&i, h) in s.index.iter().zip(&s.best) {
+                out[i as usize] = *h;
+            }
+        });
+    }
+
+    /// Occlusion of a batch of rays by stream traversal; the same answers as
+    /// [`any_single`](Self::any_single) for each ray.
+    pub fn any_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        assert!(out.len() >= rays.len(), "one answer per ray");
+        SCRATCH.with_borrow_mut(|s| {
+            self.stream::<true>(s, rays);
+            out[..rays.len()].fill(false);
+            for (&i, &d) in s.index.iter().zip(&s.done) {
+                out[i as usize] = d;
+            }
+        });
+    }
+
+    fn stream<const ANY: bool>(&self, s: &mut Scratch, rays: &[Ray]) {
+        let bins = s.bin(rays);
+        for octant in 0..8 {
+            let (b0, b1) = (bins[octant], bins[octant + 1]);
+            if b1 > b0 {
+                s.arena.clear();
+                s.arena.extend(b0..b1);
+                self.stream_octant::<ANY>(s, octant, b1 - b0);
+            }
+        }
+    }
+
+    /// Traverses the rays `s.arena[..len]` (all of direction octant `octant`).
+    fn stream_octant<const ANY: bool>(&self, s: &mut Scratch, octant: usize, len: u32) {
+        s.stack.clear();
+        s.stack.push(Entry {
+            node: self.root,
+            start: 0,
+            len,
+            top: len,
+        });
+        while let Some(e) = s.stack.pop() {
+            let (start, end) = (e.start as usize, (e.start + e.len) as usize);
+            if is_leaf(e.node) || e.len < STREAM_MIN_RAYS {
+                for k in start..end {
+                    let id = s.arena[k] as usize;
+                    self.finish::<ANY>(s, id, e.node);
+                }
+                continue;
+            }
+            let node = &self.nodes[e.node as usize];
+            let top = e.top as usize;
+            let len = e.len as usize;
+            let block = N * len;
+            if s.arena.len() < top + block + COMPACT_SLACK {
+                s.arena.resize(top + block + COMPACT_SLACK, 0);
+            }
+            if s.masks.len() < len {
+                s.masks.resize(len, 0);
+            }
+            let (below, above) = s.arena.split_at_mut(top);
+            let list = &below[start..end];
+            let planes = OctantPlanes::<<Width<N> as NodeWidth>::L>::new(node, octant);
+            // Pass 1: every ray against the N children (no loop-carried dependency but
+            // the sum); pass 2: each entered child's list compacted from the masks.
+            let mut sum = <<Width<N> as NodeWidth>::L as Lanes>::splat(0.0);
+            let mut union = 0u32;
+            for (&id, m) in list.iter().zip(&mut s.masks[..len]) {
+                let (enter, hit) = planes.test(&s.rays[id as usize]);
+                *m = hit.bitmask();
+                union |= *m;
+                if !ANY {
+                    sum = sum + (hit & enter);
+                }
+            }
+            let mut counts = [0u32; N];
+            let mut u = union;
+            while u != 0 {
+                let c = u.trailing_zeros();
+                u &= u - 1;
+                counts[c as usize] =
+                    select_ids(list, &s.masks[..len], c, &mut above[c as usize * len..]) as u32;
+            }
+            let stride = len;
+            // Children far to near by the mean entry distance of their rays, so the
+            // nearest is popped first (ordered ray stream traversal).
+            let sum = sum.to_array();
+            let mut order = [(0usize, 0f32); N];
+            let mut n = 0;
+            for (c, &k) in counts.iter().enumerate() {
+                if k == 0 {
+                    continue;
+                }
+                let key = if ANY { 0.0 } else { sum.as_ref()[c] / k as f32 };
+                insert_far_to_near(&mut order, &mut n, c, key);
+            }
+            let new_top = (top + block) as u32;
+            // The children's nodes (all four lines) and their leaves' first triangle
+            // group are prefetched as they are pushed: 1M-triangle mesh, diffuse rays,
+            // interleaved runs: 4.53/4.57 Mrays/s without, 4.25-4.68 with the nodes
+            // only, 4.76/4.77 with both; the bunny's diffuse rays unchanged (6.80-6.86).
+            for &(c, _) in &order[..n] {
+                let child = node.children[c];
+                if !is_leaf(child) {
+                    prefetch(&self.nodes[child as usize], 4);
+                } else if let Leaves::Triangles(groups) = &self.leaves
+                    && let Some(g) = groups.get(leaf_range(child).start)
+                {
+                    prefetch(g, 3);
+                }
+                s.stack.push(Entry {
+                    node: node.children[c],
+                    start: (top + c * stride) as u32,
+                    len: counts[c],
+                    top: new_top,
+                });
+            }
+        }
+    }
+
+    /// Ray `id` through the subtree `node` on its own (a leaf, or a short list).
+    #[inline(always)]
+    fn finish<const ANY: bool>(&self, s: &mut Scratch, id: usize, node: u32) {
+        let q = &s.queries[s.index[id] as usize];
+        if ANY {
+            if s.done[id] {
+                return;
+            }
+            let hit = if is_leaf(node) {
+                self.leaf_any(q, node)
+            } else {
+                self.any_from(q, node)
+            };
+            if hit {
+                s.done[id] = true;
+                s.rays[id].tmax = f32::NAN;
+            }
+        } else {
+            let tmax = s.rays[id].tmax;
+            let h = if is_leaf(node) {
+                self.leaf_closest(q, node, tmax)
+            } else {
+                self.closest_from(q, node, tmax)
+            };
+            if let Some(h) = h {
+                s.rays[id].tmax = h.t;
+                s.best[id] = Some(h);
+            }
+        }
+    }
+}
+
+/// Batches with fewer rays go through the packet kernels.
+pub const STREAM_MIN_BATCH: usize = 128;
+
+/// Whether a batch is better traced as a stream than as packets: at least
+/// [`STREAM_MIN_BATCH`] rays, and most of its 16-ray packets incoherent (their rays
+/// fall into more than two groups of direction octant and dominant axis, which sends a
+/// packet ray by ray: see `packet_setup.rs`).
+pub fn prefers_stream(rays: &[Ray]) -> bool {
+    if rays.len() < STREAM_MIN_BATCH {
+        return false;
+    }
+    let incoherent = rays
+        .chunks(crate::simd::PACKET_WIDTH)
+        .filter(|packet| {
+            let groups = packet.iter().fold(0u32, |g, r| {
+                let (d, a) = (r.dir, r.dir.abs());
+                let kz = if a.x >= a.y && a.x >= a.z {
+                    0
+                } else if a.y >= a.z {
+                    1
+                } else {
+                    2
+                };
+                let octant = (d.x.is_sign_negative() as u32)
+                    | (d.y.is_sign_negative() as u32) << 1
+                    | (d.z.is_sign_negative() as u32) << 2;
+                g | 1 << (octant * 3 + kz)
+            });
+            groups.count_ones() > 2
+        })
+        .count();
+    2 * incoherent > rays.len().div_ceil(crate::simd::PACKET_WIDTH)
+}
