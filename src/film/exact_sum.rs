@@ -68,6 +68,51 @@ impl ExactSum {
         }
     }
 
+    /// Adds `v` exactly, where `v` is a multiple of 2^-149 with `|v| < 2^160`: every
+    /// `f64` that holds a sum of `f32` values computed without rounding is one
+    /// (`film::pixel_sums` hands its exact `f64` partial sums over this way when it
+    /// falls back to the long accumulator). Its 53 significant bits land in at most
+    /// three consecutive limbs.
+    pub fn add_f64_exact(&mut self, v: f64) {
+        debug_assert!(
+            v.is_finite() && v.abs() < 2f64.powi(160),
+            "add_f64_exact({v})"
+        );
+        if !v.is_finite() || v == 0.0 {
+            return;
+        }
+        if self.pending >= MAX_PENDING {
+            self.normalize();
+        }
+        self.pending += 1;
+        let bits = v.to_bits();
+        let biased = ((bits >> 52) & 0x7ff) as i32;
+        let mantissa = bits & ((1u64 << 52) - 1);
+        // |v| >= 2^-149 is far above f64's subnormal range: `biased` is never 0 here.
+        let mut sig = mantissa | 1 << 52;
+        // v = sig * 2^(biased - 1075); bit 0 of the accumulator is worth 2^-149.
+        let mut pos = biased - 1075 - BIT0_EXP;
+        let tz = sig.trailing_zeros() as i32;
+        sig >>= tz;
+        pos += tz;
+        debug_assert!(pos >= 0, "add_f64_exact({v}): not a multiple of 2^-149");
+        if pos < 0 {
+            return;
+        }
+        let (limb, shift) = ((pos / 32) as usize, pos % 32);
+        let wide = (sig as u128) << shift; // < 2^85: three limbs
+        let sign = if bits >> 63 == 0 { 1 } else { -1 };
+        for k in 0..3 {
+            let part = ((wide >> (32 * k)) & 0xffff_ffff) as i64;
+            if part != 0 {
+                debug_assert!(limb + k < LIMBS, "add_f64_exact({v}): out of range");
+                if let Some(l) = self.limbs.get_mut(limb + k) {
+                    *l += sign * part;
+                }
+            }
+        }
+    }
+
     /// Adds another exact sum (exactly).
     pub fn add_sum(&mut self, other: &ExactSum) {
         self.normalize();
@@ -220,6 +265,37 @@ mod tests {
         let f64_sum: f64 = xs.iter().map(|&x| x as f64).sum();
         let bound = 1000.0 * f64::EPSILON * xs.iter().map(|&x| x.abs() as f64).sum::<f64>();
         assert!((whole.to_f64() - f64_sum).abs() <= bound);
+    }
+
+    #[test]
+    fn f64_partials_land_where_their_f32_addends_do() {
+        // An f64 sum of f32 values that was computed exactly, handed over in one piece,
+        // gives the same limbs as the values added one by one: near the bottom of the
+        // range (subnormals), in the middle, and at the top (sums beyond f32::MAX).
+        for xs in [
+            &[
+                f32::from_bits(1),
+                f32::from_bits(3),
+                f32::from_bits(0x80_0000),
+            ][..],
+            &[1.5, 0.25, -3.0, 1024.0, 1e-3],
+            &[f32::MAX, f32::MAX, f32::MAX],
+            &[-f32::MAX, -1e30],
+            &[0.0, -0.0],
+        ] {
+            let exact = sum(xs);
+            let f64_sum: f64 = xs.iter().map(|&x| x as f64).sum();
+            assert_eq!(f64_sum, exact.to_f64(), "{xs:?}: the f64 sum must be exact");
+            let mut s = ExactSum::default();
+            s.add_f64_exact(f64_sum);
+            assert_eq!(s.sign_magnitude(), exact.sign_magnitude(), "{xs:?}");
+            // And mixed with single adds.
+            let mut m = sum(&[7.0, -2e-40]);
+            m.add_f64_exact(f64_sum);
+            let mut all = xs.to_vec();
+            all.extend([7.0, -2e-40]);
+            assert_eq!(m.sign_magnitude(), sum(&all).sign_magnitude(), "{xs:?}");
+        }
     }
 
     #[test]

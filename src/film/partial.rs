@@ -115,16 +115,7 @@ pub fn fingerprint(scene: &impl std::fmt::Debug, options: &str) -> u64 {
 /// Appends the record of one pixel.
 pub fn encode_pixel(p: &PixelSums, out: &mut Vec<u8>) {
     out.extend_from_slice(&p.samples.to_le_bytes());
-    let sums = [
-        &p.weighted[0],
-        &p.weighted[1],
-        &p.weighted[2],
-        &p.weight,
-        &p.plain[0],
-        &p.plain[1],
-        &p.plain[2],
-    ];
-    for s in sums {
+    for s in &p.exact_sums() {
         let (negative, mag) = s.sign_magnitude();
         let lo = mag.iter().position(|&l| l != 0).unwrap_or(0);
         let hi = mag.iter().rposition(|&l| l != 0).map_or(lo, |h| h + 1);
@@ -175,12 +166,7 @@ pub fn decode_pixel(bytes: &[u8], at: &mut usize) -> std::result::Result<PixelSu
         *s = ExactSum::from_sign_magnitude(sign == 1, mag)
             .ok_or_else(|| "sum out of range".to_string())?;
     }
-    Ok(PixelSums {
-        weighted: [sums[0], sums[1], sums[2]],
-        weight: sums[3],
-        plain: [sums[4], sums[5], sums[6]],
-        samples,
-    })
+    Ok(PixelSums::from_exact_sums(sums, samples))
 }
 
 impl PartialImage {

@@ -17,6 +17,10 @@ use glam::Vec3;
 /// An exact point (`p_error = 0`, e.g. on an axis-aligned plane through the origin)
 /// is not moved: the triangle test's conservative `t > δt` rejects the surface the ray
 /// starts on (see `intersect_triangle`).
+///
+/// Dead end: a branch-free form (selects on the signs of `w·n` and of each offset
+/// component, the same bits) changed nothing: 12.1 % of `perf` samples before, 12.4 %
+/// after, whitted_base 1024x768, 1 thread; the cost is not mispredicted branches.
 #[inline]
 pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = n.abs().dot(p_error) * (1.0 + gamma(8));

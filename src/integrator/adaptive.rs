@@ -143,10 +143,11 @@ struct Acc {
 
 impl Acc {
     fn of(s: &PixelSums) -> Acc {
+        let f = s.sums_f64();
         Acc {
-            weighted: s.weighted.map(|x| x.to_f64()),
-            weight: s.weight.to_f64(),
-            plain: s.plain.map(|x| x.to_f64()),
+            weighted: [f[0], f[1], f[2]],
+            weight: f[3],
+            plain: [f[4], f[5], f[6]],
             samples: s.samples,
         }
     }

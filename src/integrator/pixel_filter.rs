@@ -20,8 +20,21 @@ pub(crate) fn resolve_pixel(
     radiance: &[Vec3],
     nonfinite: &mut u64,
 ) -> PixelSums {
-    let per_eye = (plan.lens.max(1) * plan.time.max(1)) as usize;
     let mut sums = PixelSums::default();
+    resolve_pixel_into(plan, offsets, radiance, nonfinite, &mut sums);
+    sums
+}
+
+/// [`resolve_pixel`] adding into `sums` where they lie (the wavefront's tile buffer),
+/// rather than returning them by value.
+pub(crate) fn resolve_pixel_into(
+    plan: &SamplePlan,
+    offsets: &[(f32, f32)],
+    radiance: &[Vec3],
+    nonfinite: &mut u64,
+    sums: &mut PixelSums,
+) {
+    let per_eye = (plan.lens.max(1) * plan.time.max(1)) as usize;
     for (e, &(ox, oy)) in offsets.iter().enumerate() {
         let mut radiance_sum = Vec3::ZERO;
         for &r in &radiance[e * per_eye..(e + 1) * per_eye] {
@@ -43,5 +56,4 @@ pub(crate) fn resolve_pixel(
         }
         sums.add_sample(w, radiance);
     }
-    sums
 }

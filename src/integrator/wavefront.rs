@@ -21,7 +21,7 @@
 //! 5. the child queues become the next wave (trace, shade, shadow) until they are
 //!    empty (the depth limit and the contribution cutoff stop emission in `shade_emit`);
 //! 6. the camera-sample accumulators are filtered into pixels by
-//!    [`resolve_pixel`], the recursive renderer's own filter step (a sample whose total
+//!    [`resolve_pixel`](super::pixel_filter::resolve_pixel), the recursive renderer's own filter step (a sample whose total
 //!    is NaN or infinite is dropped and counted).
 //!
 //! Radiance is linear in the tree, so summing `weight · local` over the tree's nodes in
@@ -39,7 +39,7 @@
 use super::camera_packets::CameraStaging;
 use super::camera_rays::{CameraSampler, SamplePlan};
 use super::interaction::SurfaceInteraction;
-use super::pixel_filter::resolve_pixel;
+use super::pixel_filter::resolve_pixel_into;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::tiles::{Tile, TileResult, render_tiles};
@@ -286,11 +286,12 @@ fn render_tile(
         ws.camera.clear();
         let done = (ws.radiance.len() / rays_per_pixel).min(ws.unresolved.len());
         for (g, &at) in ws.unresolved[..done].iter().enumerate() {
-            pixels[at as usize] = resolve_pixel(
+            resolve_pixel_into(
                 &plan,
                 &ws.offsets[g * eye..(g + 1) * eye],
                 &ws.radiance[g * rays_per_pixel..(g + 1) * rays_per_pixel],
                 &mut nonfinite_samples,
+                &mut pixels[at as usize],
             );
         }
         ws.unresolved.drain(..done);
