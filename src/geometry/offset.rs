@@ -56,7 +56,7 @@ fn step_towards_sign(x: f32, s: f32) -> f32 {
         xb.wrapping_sub(1)
     };
     // `next_up(inf)`, `next_down(-inf)` and NaN are left as they are.
-    let keep = !(s > 0.0 || s < 0.0) || mag > INF || (away && mag == INF);
+    let keep = s == 0.0 || s.is_nan() || mag > INF || (away && mag == INF);
     if keep { x } else { f32::from_bits(next) }
 }
 
