@@ -151,7 +151,11 @@ impl Shader<'_> {
             return;
         }
         // Every reflected and glossy direction leaves on the facing side (checked
-        // below), so one origin serves them all.
+        // below), so one origin serves them all. A material that spawns no child (the
+        // bulk of most frames: diffuse and Phong) does not pay for it.
+        if m.mirror == Vec3::ZERO && !m.is_glossy() && !m.is_transmissive() {
+            return;
+        }
         let origin_out = offset_ray_origin(si.p, si.p_error, si.n_geometric, si.n_geometric);
         let push = |out: &mut Emitted, kind, dir, origin, weight, throughput| {
             let branch = out.children.len() as u32;
