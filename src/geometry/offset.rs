@@ -18,9 +18,6 @@ use glam::Vec3;
 /// is not moved: the triangle test's conservative `t > δt` rejects the surface the ray
 /// starts on (see `intersect_triangle`).
 ///
-/// Dead end: a branch-free form (selects on the signs of `w·n` and of each offset
-/// component, the same bits) changed nothing: 12.1 % of `perf` samples before, 12.4 %
-/// after, whitted_base 1024x768, 1 thread; the cost is not mispredicted branches.
 #[inline]
 pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     let d = n.abs().dot(p_error) * (1.0 + gamma(8));
@@ -29,10 +26,12 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
         offset = -offset;
     }
     let mut po = p + offset;
-    // Dead end (branch shade-lanes, 2026-11-23): a branch-free form of this loop
-    // (selects on the bits, bit-identical to next_up/next_down over a 20k-value sweep)
-    // was slower on the POV-Ray whitted frame, 1 thread, 5 interleaved reps: shade stage
-    // min/median/max 229/233/276 ms against 220/222/230 ms for this loop.
+    // Dead end (2026-11-23, tried twice independently): a branch-free form of this
+    // loop (selects on the bits, bit-identical to next_up/next_down) did not help on
+    // the POV-Ray whitted frame, 1 thread: shade stage min/median/max 229/233/276 ms
+    // against 220/222/230 ms for this loop (5 interleaved reps), and 12.4 % of `perf`
+    // samples against 12.1 %. The cost is the number of calls (one per child ray, two
+    // per shadow ray), not mispredicted branches.
     for i in 0..3 {
         if offset[i] > 0.0 {
             po[i] = po[i].next_up();
