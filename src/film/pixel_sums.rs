@@ -301,7 +301,7 @@ mod tests {
         for case in 0..400 {
             let n = 1 + (next() % 300) as usize;
             let spread = (case % 13) as i32 * 10; // binary orders of magnitude
-            let mut value = |r: u64| -> f32 {
+            let value = |r: u64| -> f32 {
                 match r % 23 {
                     0 => 0.0,
                     1 if spread > 100 => f32::from_bits(1 + (r >> 40) as u32 % 1000),
