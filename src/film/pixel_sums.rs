@@ -300,7 +300,7 @@ mod tests {
         let (mut fast, mut fell_back) = (0, 0);
         for case in 0..400 {
             let n = 1 + (next() % 300) as usize;
-            let spread = (case % 13) as i32 * 10; // binary orders of magnitude
+            let spread = (case % 13) * 10; // binary orders of magnitude
             let value = |r: u64| -> f32 {
                 match r % 23 {
                     0 => 0.0,
