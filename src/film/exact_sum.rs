@@ -36,36 +36,12 @@ pub struct ExactSum {
 impl ExactSum {
     /// Adds `x` exactly. `x` must be finite (the caller drops NaN and infinities, as
     /// the pixel filter counts them); a non-finite `x` panics in debug builds and is
-    /// ignored in release builds.
+    /// ignored in release builds. Every finite `f32` is an `f64` that is a multiple of
+    /// 2^-149 below 2^128, so this is [`add_f64_exact`](Self::add_f64_exact).
     #[inline]
     pub fn add(&mut self, x: f32) {
         debug_assert!(x.is_finite(), "ExactSum::add({x})");
-        if !x.is_finite() || x == 0.0 {
-            return;
-        }
-        if self.pending >= MAX_PENDING {
-            self.normalize();
-        }
-        self.pending += 1;
-        let bits = x.to_bits();
-        let biased = (bits >> 23) & 0xff;
-        let mantissa = (bits & 0x7f_ffff) as u64;
-        // Normal: (2^23 + m) * 2^(e - 150); subnormal: m * 2^(1 - 150).
-        let (sig, pos) = if biased == 0 {
-            (mantissa, 0)
-        } else {
-            (mantissa | 1 << 23, biased - 1)
-        };
-        let (limb, shift) = ((pos / 32) as usize, pos % 32);
-        let v = sig << shift; // < 2^55
-        let (lo, hi) = ((v & 0xffff_ffff) as i64, (v >> 32) as i64);
-        if bits >> 31 == 0 {
-            self.limbs[limb] += lo;
-            self.limbs[limb + 1] += hi;
-        } else {
-            self.limbs[limb] -= lo;
-            self.limbs[limb + 1] -= hi;
-        }
+        self.add_f64_exact(x as f64);
     }
 
     /// Adds `v` exactly, where `v` is a multiple of 2^-149 with `|v| < 2^160`: every

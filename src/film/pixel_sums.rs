@@ -117,14 +117,8 @@ impl PixelSums {
     /// Moves the sums into long accumulators (the `f64` sums are exact, so they carry
     /// over without loss) and returns them.
     fn promote(&mut self) -> &mut [ExactSum; 7] {
-        let fast = self.fast;
-        self.exact.get_or_insert_with(|| {
-            let mut exact = [ExactSum::default(); 7];
-            for (s, v) in exact.iter_mut().zip(fast) {
-                s.add_f64_exact(v);
-            }
-            Box::new(exact)
-        })
+        let sums = self.exact_sums();
+        self.exact.get_or_insert_with(|| Box::new(sums))
     }
 
     /// The seven sums as long accumulators: `Σ w·L` r, g, b, `Σ w`, `Σ L` r, g, b.

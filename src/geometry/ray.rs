@@ -228,14 +228,7 @@ impl RayQuery {
             return None;
         }
         let d = ray.dir;
-        let a = d.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
+        let kz = dominant_axis(d);
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
         // Keep the winding of the projected triangle: swap when the dominant axis is negative.
@@ -257,5 +250,20 @@ impl RayQuery {
             sy: d[ky] * sz,
             sz,
         })
+    }
+}
+
+/// The axis along which `d` is largest in magnitude (ties to the lower axis): the
+/// watertight test's `kz`. Packet setup groups lanes by it, and the stream kernel's
+/// coherence test (`bvhn::prefers_stream`) predicts that grouping with it.
+#[inline]
+pub fn dominant_axis(d: Vec3) -> usize {
+    let a = d.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
     }
 }

@@ -384,14 +384,8 @@ pub fn prefers_stream(rays: &[Ray]) -> bool {
         .chunks(crate::simd::PACKET_WIDTH)
         .filter(|packet| {
             let groups = packet.iter().fold(0u32, |g, r| {
-                let (d, a) = (r.dir, r.dir.abs());
-                let kz = if a.x >= a.y && a.x >= a.z {
-                    0
-                } else if a.y >= a.z {
-                    1
-                } else {
-                    2
-                };
+                let d = r.dir;
+                let kz = crate::geometry::dominant_axis(d) as u32;
                 let octant = (d.x.is_sign_negative() as u32)
                     | (d.y.is_sign_negative() as u32) << 1
                     | (d.z.is_sign_negative() as u32) << 2;
