@@ -21,6 +21,7 @@
 //! similar magnitude take the `f64` path.
 
 use super::exact_sum::ExactSum;
+use crate::simd::exact_sums::add7_if_exact;
 use glam::Vec3;
 
 /// Index of `Σ w` among the seven sums (`Σ w·L` r, g, b; `Σ w`; `Σ L` r, g, b).
@@ -54,13 +55,6 @@ impl Default for PixelSums {
     }
 }
 
-/// The exponent of the ulp of a non-zero finite `f32` (subnormals: 2^-149).
-#[inline]
-fn ulp_exponent(x: f32) -> i32 {
-    let biased = ((x.to_bits() >> 23) & 0xff) as i32;
-    biased.max(1) - 150
-}
-
 /// Whether sums whose addends are multiples of `2^ulp_min` and whose absolute sums are
 /// `abs` are held exactly by `f64`: every `abs` below `2^(ulp_min + 53)`.
 #[inline]
@@ -70,7 +64,8 @@ fn f64_exact(abs: &[f64; 7], ulp_min: i32) -> bool {
     }
     // ulp_min is in -149..=104, so the bound is a normal f64.
     let bound = f64::from_bits(((ulp_min + 53 + 1023) as u64) << 52);
-    abs.iter().all(|&a| a < bound)
+    // `&` rather than `all`: seven compares without a branch each.
+    abs.iter().fold(true, |ok, &a| ok & (a < bound))
 }
 
 impl PixelSums {
@@ -88,25 +83,9 @@ impl PixelSums {
             }
             return;
         }
-        let mut ulp_min = self.ulp_min;
-        let mut abs = self.abs;
-        for (a, x) in abs.iter_mut().zip(xs) {
-            // As ExactSum::add: zeros add nothing, non-finite values are ignored (the
-            // pixel filter drops them before they get here).
-            if x != 0.0 && x.is_finite() {
-                ulp_min = ulp_min.min(ulp_exponent(x));
-                *a += x.abs() as f64;
-            }
-        }
-        if f64_exact(&abs, ulp_min) {
-            for (s, x) in self.fast.iter_mut().zip(xs) {
-                if x.is_finite() {
-                    *s += x as f64;
-                }
-            }
-            self.abs = abs;
-            self.ulp_min = ulp_min;
-        } else {
+        // The rule of the module documentation, in eight lanes without branches
+        // (`simd::exact_sums`; its test has the scalar loop as the oracle).
+        if !add7_if_exact(&mut self.fast, &mut self.abs, &mut self.ulp_min, xs) {
             let exact = self.promote();
             for (s, x) in exact.iter_mut().zip(xs) {
                 s.add(x);

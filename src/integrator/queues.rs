@@ -33,6 +33,23 @@ impl RayQueue {
         self.path.clear();
     }
 
+    /// Appends camera rays: consecutive accumulator slots from `first_slot`, weight and
+    /// throughput one, and the given paths (one per ray).
+    pub fn extend_camera(
+        &mut self,
+        rays: &[Ray],
+        first_slot: u32,
+        paths: impl ExactSizeIterator<Item = u64>,
+    ) {
+        debug_assert_eq!(rays.len(), paths.len());
+        let n = self.rays.len() + rays.len();
+        self.rays.extend_from_slice(rays);
+        self.slot.extend(first_slot..first_slot + rays.len() as u32);
+        self.weight.resize(n, Vec3::ONE);
+        self.throughput.resize(n, Vec3::ONE);
+        self.path.extend(paths);
+    }
+
     pub fn push(&mut self, ray: Ray, slot: u32, weight: Vec3, throughput: Vec3, path: u64) {
         self.rays.push(ray);
         self.slot.push(slot);

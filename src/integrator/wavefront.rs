@@ -315,12 +315,28 @@ fn render_tile(
             &mut ws.sinks.drawn,
         );
         ws.sinks.rays.camera += generated.len() as u64;
-        for (i, &ray) in generated.iter().enumerate() {
-            let slot = ws.sinks.acc.len() as u32;
-            let path = plan.first_path() + (i % rays_per_pixel) as u64;
-            ws.camera.push(ray, slot, Vec3::ONE, Vec3::ONE, path);
-            ws.sinks.acc.push(Vec3::ZERO);
-            ws.sinks.slot_pixel.push(ws.pixels[i / rays_per_pixel].2);
+        // The rays enter the queue a run at a time (up to the batch's free room), every
+        // array filled in bulk: ray `i` of the block gets the next accumulator slot,
+        // path `first_path + i mod rays_per_pixel` and its pixel's index. Pushing the
+        // seven arrays ray by ray was a third of the camera stage (bunny 1024x1024).
+        let mut i = 0;
+        while i < generated.len() {
+            let room = batch.saturating_sub(ws.camera.rays.len()).max(1);
+            let end = (i + room).min(generated.len());
+            let first_slot = ws.sinks.acc.len() as u32;
+            ws.camera.extend_camera(
+                &generated[i..end],
+                first_slot,
+                (i..end).map(|k| plan.first_path() + (k % rays_per_pixel) as u64),
+            );
+            ws.sinks
+                .acc
+                .resize(ws.sinks.acc.len() + (end - i), Vec3::ZERO);
+            let pixels = &ws.pixels;
+            ws.sinks
+                .slot_pixel
+                .extend((i..end).map(|k| pixels[k / rays_per_pixel].2));
+            i = end;
             if ws.camera.rays.len() >= batch {
                 stages.camera += ms_since(*t);
                 flush(ws, stages);

@@ -11,6 +11,7 @@
 
 pub mod camera;
 pub mod compact;
+pub mod exact_sums;
 pub mod kernels;
 pub mod prefetch;
 
