@@ -137,12 +137,18 @@ fn check_unbiased(name: &str) {
         let mut sum = vec![0.0f64; 144];
         for s in 0..seeds {
             u.seed = 100 + s;
-            for (p, v) in lum(&recursive::render(&scene, &accel, &u).film).into_iter().enumerate() {
+            for (p, v) in lum(&recursive::render(&scene, &accel, &u).film)
+                .into_iter()
+                .enumerate()
+            {
                 sum[p] += v / n;
             }
         }
         for &p in &rare {
-            eprintln!("{name}: pixel {p}: uniform sobol 16 spp, mean over the seeds {}", sum[p]);
+            eprintln!(
+                "{name}: pixel {p}: uniform sobol 16 spp, mean over the seeds {}",
+                sum[p]
+            );
         }
     }
     let k = z2.len() as f64;
@@ -154,7 +160,10 @@ fn check_unbiased(name: &str) {
     );
     assert!(k > 50.0, "{name}: only {k} pixels vary");
     assert!(rare.len() <= 4, "{name}: {} rare-event pixels", rare.len());
-    assert!(mean_z2 < bound, "{name}: mean z² {mean_z2:.3} >= {bound:.3}");
+    assert!(
+        mean_z2 < bound,
+        "{name}: mean z² {mean_z2:.3} >= {bound:.3}"
+    );
 }
 
 #[test]
@@ -190,7 +199,11 @@ fn kept_pilot_passes_equal_uniform_sobol_renders() {
         let uniform = recursive::render(&scene, &accel, &u).film;
         assert_eq!(info.mean_spp, (i + 1) as f64);
         assert!(info.estimated_error.is_none());
-        assert!(film == &uniform, "pilot pass {i} differs from a uniform {}-sample render", i + 1);
+        assert!(
+            film == &uniform,
+            "pilot pass {i} differs from a uniform {}-sample render",
+            i + 1
+        );
     }
     // After the pilot the counts move away from uniform, never below the pilot.
     assert!(out.counts.iter().all(|&c| c >= a.pilot));

@@ -500,7 +500,10 @@ pub fn render(
         // other colour's pilot samples (module documentation).
         for (c, d) in done.iter_mut().enumerate() {
             let full = (0..coords.len()).all(|p| !plan.is(p, c) || counts[p] >= MAX_SPP);
-            if a.target_error.is_some_and(|e| plan.estimate(c, &counts) <= e) || full {
+            if a.target_error
+                .is_some_and(|e| plan.estimate(c, &counts) <= e)
+                || full
+            {
                 *d = true;
             }
         }
@@ -577,10 +580,22 @@ mod tests {
                 for (own, salt) in [(true, 7u64), (false, 9)] {
                     let pick = |p: usize| (colour(p) as usize == c) == own;
                     let var2: Vec<f64> = (0..n)
-                        .map(|p| if pick(p) { noise(salt * 31 + p as u64) } else { var[p] })
+                        .map(|p| {
+                            if pick(p) {
+                                noise(salt * 31 + p as u64)
+                            } else {
+                                var[p]
+                            }
+                        })
                         .collect();
                     let cost2: Vec<f64> = (0..n)
-                        .map(|p| if pick(p) { 1.0 + 30.0 * noise(salt * 77 + p as u64) } else { cost[p] })
+                        .map(|p| {
+                            if pick(p) {
+                                1.0 + 30.0 * noise(salt * 77 + p as u64)
+                            } else {
+                                cost[p]
+                            }
+                        })
                         .collect();
                     let other = Plan::new(w, h, parity, &var2, &cost2);
                     let mut same = other.estimate(c, &counts) == base.estimate(c, &counts);
@@ -604,7 +619,9 @@ mod tests {
     fn targets_follow_the_neighbours_variance() {
         // 8 x 8: the right half varies (variance 0.04), the left half is flat.
         let n = 64;
-        let var: Vec<f64> = (0..n).map(|p| if p % 8 >= 4 { 0.04 } else { 0.0 }).collect();
+        let var: Vec<f64> = (0..n)
+            .map(|p| if p % 8 >= 4 { 0.04 } else { 0.0 })
+            .collect();
         let plan = Plan::new(8, 8, 0, &var, &vec![1.0; n]);
         let counts = vec![4u32; n];
         let mut t = vec![0; n];
@@ -615,13 +632,16 @@ mod tests {
         // (shares about 54 and 8.4, rounded).
         let ratio = of(6, 0) / of(1, 1);
         assert!((5.5..7.5).contains(&ratio), "{ratio}: {t:?}");
-        for p in 0..n {
+        for (p, &tp) in t.iter().enumerate() {
             if (p % 8 + p / 8) % 2 == 1 {
-                assert_eq!(t[p], 4, "the other colour is untouched");
+                assert_eq!(tp, 4, "the other colour is untouched");
             }
-            assert!(t[p] >= 4);
+            assert!(tp >= 4);
         }
-        let total: u32 = (0..n).filter(|p| (p % 8 + p / 8) % 2 == 0).map(|p| t[p]).sum();
+        let total: u32 = (0..n)
+            .filter(|p| (p % 8 + p / 8) % 2 == 0)
+            .map(|p| t[p])
+            .sum();
         // The colour's share is 32 * 32 = 1024 samples, each of 32 pixels rounded.
         assert!((1024 - 16..=1024 + 16).contains(&total), "{total}");
         assert!(plan.estimate(0, &t) < plan.estimate(0, &counts));
