@@ -541,6 +541,56 @@ mod tests {
         assert!(loglog_slope(&pts[..1]).is_nan());
     }
 
+    fn row(strategy: &str, seconds: f64, display_rmse: f64) -> ConvergeRow {
+        ConvergeRow {
+            strategy: strategy.into(),
+            sampler: SamplerKind::Sobol,
+            budget: 1,
+            eye: 1,
+            shadow: 1,
+            seconds,
+            rmse: display_rmse,
+            psnr: 0.0,
+            display_rmse,
+            rays: 0,
+        }
+    }
+
+    /// Equal time: a uniform strategy's error is interpolated in log-log between the
+    /// two renders that bracket the adaptive render's seconds (on a power law
+    /// `e = 0.1 t^-0.5` the interpolation is exact), and nothing is extrapolated.
+    #[test]
+    fn equal_time_interpolates_in_log_log_and_never_extrapolates() {
+        let rows = vec![
+            row("jittered Bx1", 1.0, 0.1),
+            row("jittered Bx1", 4.0, 0.05),
+            row("sobol Bx1", 1.0, 0.08),
+            row("sobol Bx1", 2.0, 0.04),
+            row(ADAPTIVE, 2.0, 0.0212),
+            row(ADAPTIVE, 8.0, 0.01),
+        ];
+        let e = equal_time(&rows);
+        assert_eq!(e.len(), 2);
+        let j = e[0].jittered_display_rmse.unwrap();
+        assert!((j - 0.1 / 2f64.sqrt()).abs() < 1e-12, "{j}");
+        assert!((e[0].ratio.unwrap() - 0.0212 / j).abs() < 1e-12);
+        // At a bracket's end: that render's error (up to exp(ln x) rounding).
+        assert!((e[0].sobol_display_rmse.unwrap() - 0.04).abs() < 1e-15);
+        assert_eq!(e[1].jittered_display_rmse, None);
+        assert_eq!(e[1].sobol_ratio, None);
+        let report = ConvergeReport {
+            reference_seconds: 0.0,
+            rows,
+            slopes: Vec::new(),
+            equal_time: e,
+        };
+        assert!(
+            report
+                .equal_time_table()
+                .contains("| 8.0000 | 0.01000 | - | - | - | - |")
+        );
+    }
+
     /// Bright visible emitters over a wide penumbra (the lights of
     /// `scenes/area_lights.toml`, seen from above): with one eye sample per pixel,
     /// going from 1 to 16 shadow samples leaves the linear RMSE where it is (within
