@@ -127,6 +127,13 @@ struct ConvergeArgs {
     /// Renders per measurement, the fastest one's seconds reported.
     #[arg(long, default_value_t = 1)]
     reps: u32,
+    /// Sample patterns measured with all samples on the eye (`B x 1`), comma-separated
+    /// (default: all of them).
+    #[arg(long, value_delimiter = ',', value_parser = parse_sampler)]
+    samplers: Option<Vec<packet_render::integrator::SamplerKind>>,
+    /// Leave out the eye/shadow splits (`jittered 1xB`, `jittered √Bx√B`).
+    #[arg(long)]
+    no_splits: bool,
 }
 
 #[derive(clap::Args)]
@@ -616,6 +623,10 @@ fn converge(args: ConvergeArgs) -> packet_render::Result<()> {
         budgets: args.budgets,
         accel: args.accel,
         reps: args.reps,
+        samplers: args
+            .samplers
+            .unwrap_or_else(|| packet_render::integrator::SamplerKind::ALL.to_vec()),
+        splits: !args.no_splits,
         ..Default::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()

@@ -19,9 +19,10 @@ fn scene(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// Depth of field and an area light, 1 shadow ray per eye sample.
-fn setup(size: u32) -> (Scene, SceneAccel, RenderOptions) {
-    let scene = load_scene(&scene("dof_area.toml")).unwrap();
+/// A scene with depth of field and an area light (`dof_area.toml`, `product.toml`),
+/// 1 shadow ray and 1 lens sample per eye sample.
+fn setup_scene(name: &str, size: u32) -> (Scene, SceneAccel, RenderOptions) {
+    let scene = load_scene(&scene(name)).unwrap();
     let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
     let mut opts = RenderOptions::from_scene(&scene);
     opts.width = size;
@@ -29,6 +30,10 @@ fn setup(size: u32) -> (Scene, SceneAccel, RenderOptions) {
     opts.samples.shadow = 1;
     opts.samples.lens = 1;
     (scene, accel, opts)
+}
+
+fn setup(size: u32) -> (Scene, SceneAccel, RenderOptions) {
+    setup_scene("dof_area.toml", size)
 }
 
 fn budget(mean_spp: f64) -> AdaptiveOptions {
@@ -55,17 +60,31 @@ fn lum(f: &Film) -> Vec<f64> {
 /// 4096-sample reference: `z_p = (mean_p - ref_p) / (s_p / √S)` with `s_p` the
 /// pixels' standard deviation over the seeds. For an unbiased estimator `z_p` is
 /// t-distributed (S - 1 dof, E[z²] = (S-1)/(S-3) ≈ 1.07 at S = 32), and the mean of
-/// `z²` over the `n` pixels that vary has standard deviation about `sqrt(2 / n)`
+/// `z²` over the `n` pixels tested has standard deviation about `sqrt(2 / n)`
 /// (more with heavy tails); the reference's own noise (4096 stratified samples against
 /// the 32 x 8 of the means) adds at most 1/16 to the variance. Tolerance: mean z² <
 /// 1.07 * (1 + 1/16) + 5 * sqrt(2 / n). A bias of a fifth of the seeds' standard error
 /// in every pixel would not be seen; one of a standard error would (mean z² ≈ 2).
-#[test]
-fn adaptive_estimates_are_unbiased_pixel_by_pixel() {
-    let (scene, accel, mut opts) = setup(12);
+///
+/// Which pixels are tested: `s_p / √S` is a standard error only if the seeds' values
+/// are spread enough for the mean to be near normal. Pixels where every seed gives the
+/// same value (the background; an umbra that every sample sees as umbra) have none and
+/// are shown, not tested. So are *rare-event* pixels, where fewer than 4 of the 32
+/// seeds differ from the most common value at all: there `s_p` measures the one or
+/// two seeds that happened to see the event, not its probability, and the t-statistic
+/// is meaningless. The case that made this rule (dof_area, pixel 96, the red sphere's
+/// umbra, ambient only: (0.016, 0.003, 0.002)): 31 seeds give exactly that, one gives
+/// 0.016038 (one of its 16 samples saw a sliver of the light), and the 4096-sample
+/// reference, which sees the sliver more often, is 6.5 % brighter in luminance: z² =
+/// 758,199 from an `s_p` of 2.4e-6. A uniform `sobol` render of 16 samples, unbiased
+/// by construction, misses it the same way (printed for every rare-event pixel). The
+/// old cut, `var > 1e-12`, separated such pixels from the tested ones only by luck. The
+/// test asserts that such pixels are few (at most 4 of 144), so that the rule cannot
+/// hide a systematic error.
+fn check_unbiased(name: &str) {
+    let (scene, accel, mut opts) = setup_scene(name, 12);
     let seeds = 32u64;
-    let mut sum = vec![0.0f64; 144];
-    let mut sq = vec![0.0f64; 144];
+    let mut values = vec![Vec::new(); 144];
     let mut spread = 0u32;
     for s in 0..seeds {
         opts.seed = 100 + s;
@@ -76,12 +95,11 @@ fn adaptive_estimates_are_unbiased_pixel_by_pixel() {
         );
         spread = spread.max(hi - lo);
         for (p, v) in lum(&out.film).into_iter().enumerate() {
-            sum[p] += v;
-            sq[p] += v * v;
+            values[p].push(v);
         }
     }
     // The allocation is adaptive: counts differ between pixels.
-    assert!(spread >= 8, "sample counts spread only {spread}");
+    assert!(spread >= 8, "{name}: sample counts spread only {spread}");
     let mut r = opts.clone();
     r.sampler = SamplerKind::Jittered;
     r.spp = 4096;
@@ -89,27 +107,107 @@ fn adaptive_estimates_are_unbiased_pixel_by_pixel() {
     let reference = lum(&recursive::render(&scene, &accel, &r).film);
     let n = seeds as f64;
     let mut z2 = Vec::new();
-    let mut constant = 0;
-    for p in 0..144 {
-        let mean = sum[p] / n;
-        let var = (sq[p] - sum[p] * sum[p] / n) / (n - 1.0);
-        if var > 1e-12 {
-            z2.push((mean - reference[p]).powi(2) / (var / n));
-        } else {
-            // Every seed rendered this pixel alike (the background, or an umbra whose
-            // few samples all missed the light): no standard error to test against;
-            // shown, not tested (a 4096-sample reference can see a rare event that
-            // 32 x 1-2 samples miss, e.g. 0.00569 against 0.00606 in one umbra pixel).
+    let (mut constant, mut rare) = (0, Vec::new());
+    for (p, v) in values.iter().enumerate() {
+        let mean = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let modal = v
+            .iter()
+            .map(|a| v.iter().filter(|b| *b == a).count())
+            .max()
+            .unwrap();
+        let deviating = v.len() - modal;
+        if deviating == 0 {
             constant += 1;
-            eprintln!("constant pixel {p}: {mean} vs reference {}", reference[p]);
+        } else if deviating < 4 {
+            eprintln!(
+                "{name}: rare-event pixel {p}: {deviating} of {seeds} seeds differ; mean {mean} vs reference {}",
+                reference[p]
+            );
+            rare.push(p);
+        } else {
+            z2.push((mean - reference[p]).powi(2) / (var / n));
+        }
+    }
+    if !rare.is_empty() {
+        // The same seeds, uniform sobol, 16 samples: misses the rare event alike.
+        let mut u = opts.clone();
+        u.sampler = SamplerKind::Sobol;
+        u.spp = 16;
+        let mut sum = vec![0.0f64; 144];
+        for s in 0..seeds {
+            u.seed = 100 + s;
+            for (p, v) in lum(&recursive::render(&scene, &accel, &u).film)
+                .into_iter()
+                .enumerate()
+            {
+                sum[p] += v / n;
+            }
+        }
+        for &p in &rare {
+            eprintln!(
+                "{name}: pixel {p}: uniform sobol 16 spp, mean over the seeds {}",
+                sum[p]
+            );
         }
     }
     let k = z2.len() as f64;
     let mean_z2 = z2.iter().sum::<f64>() / k;
     let bound = 1.07 * (1.0 + 1.0 / 16.0) + 5.0 * (2.0 / k).sqrt();
-    eprintln!("mean z² {mean_z2:.3} over {k} pixels (bound {bound:.3}), {constant} constant");
-    assert!(k > 50.0, "only {k} pixels vary");
-    assert!(mean_z2 < bound, "mean z² {mean_z2:.3} >= {bound:.3}");
+    eprintln!(
+        "{name}: mean z² {mean_z2:.3} over {k} pixels (bound {bound:.3}), {constant} constant, {} rare-event",
+        rare.len()
+    );
+    assert!(k > 50.0, "{name}: only {k} pixels vary");
+    assert!(rare.len() <= 4, "{name}: {} rare-event pixels", rare.len());
+    assert!(
+        mean_z2 < bound,
+        "{name}: mean z² {mean_z2:.3} >= {bound:.3}"
+    );
+}
+
+#[test]
+fn adaptive_estimates_are_unbiased_pixel_by_pixel() {
+    check_unbiased("dof_area.toml");
+}
+
+#[test]
+fn adaptive_estimates_are_unbiased_pixel_by_pixel_on_the_product_shot() {
+    check_unbiased("product.toml");
+}
+
+/// The pilot's samples are kept: each pilot pass's image is, bit for bit, the image a
+/// uniform `sobol` render of that many samples per pixel gives (the same samples,
+/// summed in the same order), and after the pilot every pixel has exactly `pilot`
+/// samples.
+#[test]
+fn kept_pilot_passes_equal_uniform_sobol_renders() {
+    let (scene, accel, mut opts) = setup_scene("product.toml", 16);
+    opts.seed = 3;
+    let a = budget(12.0);
+    let mut films = Vec::new();
+    let out = adaptive::render(&scene, &accel, &opts, &a, Instant::now(), |f, info| {
+        films.push((f.clone(), info.clone()));
+        Ok(())
+    })
+    .unwrap();
+    assert!(films.len() > a.pilot as usize, "{} passes", films.len());
+    for (i, (film, info)) in films.iter().take(a.pilot as usize).enumerate() {
+        let mut u = opts.clone();
+        u.sampler = SamplerKind::Sobol;
+        u.spp = i as u32 + 1;
+        let uniform = recursive::render(&scene, &accel, &u).film;
+        assert_eq!(info.mean_spp, (i + 1) as f64);
+        assert!(info.estimated_error.is_none());
+        assert!(
+            film == &uniform,
+            "pilot pass {i} differs from a uniform {}-sample render",
+            i + 1
+        );
+    }
+    // After the pilot the counts move away from uniform, never below the pilot.
+    assert!(out.counts.iter().all(|&c| c >= a.pilot));
+    assert!(out.counts.iter().any(|&c| c > 12));
 }
 
 /// Every pass's image and the counts are a function of the seed: the same with 1
@@ -198,10 +296,11 @@ fn cli_time_limit_writes_an_image_within_the_limit() {
     assert!(o.status.success(), "{stderr}");
     eprintln!("--time-limit 2: {wall:?} of wall time");
     assert!(stderr.contains("pass   0"), "{stderr}");
-    // "mean X spp": stopped by the limit, short of the scene's 16 samples per pixel.
+    // The summary's "mean X spp" (the last on stderr): stopped by the limit, short of
+    // the scene's 16 samples per pixel.
     let mean_spp: f64 = stderr
         .split("mean ")
-        .nth(1)
+        .last()
         .and_then(|r| r.split(" spp").next())
         .and_then(|x| x.trim().parse().ok())
         .unwrap_or_else(|| panic!("no mean spp in {stderr}"));
