@@ -121,7 +121,9 @@ impl<const N: usize> QNode<N> {
             q: [[255; N], [255; N], [255; N], [0; N], [0; N], [0; N]],
             children: node.children,
         };
-        let used: Vec<usize> = (0..N).filter(|&c| node.children[c] != EMPTY_CHILD).collect();
+        let used: Vec<usize> = (0..N)
+            .filter(|&c| node.children[c] != EMPTY_CHILD)
+            .collect();
         if used.is_empty() {
             return out;
         }

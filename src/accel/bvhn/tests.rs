@@ -1,9 +1,9 @@
 //! Unit tests of the N-wide BVH internals (stack need, parallel collapse, packet bounds).
 use super::collapse::Collapse;
 use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width};
-use super::qnode::QNode;
 use super::packet_bounds::PacketBounds;
 use super::packet_setup::PacketSetup;
+use super::qnode::QNode;
 use super::stack::{PACKET_STACK, SINGLE_STACK};
 use super::tree::{Bvh, Bvh4, Bvh8, wide_build_options};
 use crate::accel::sah_build::build_tree;
@@ -246,6 +246,8 @@ fn validate_rejects_a_box_rounded_the_wrong_way() {
         .find(|&s| comp.nodes[root].children[s] != EMPTY_CHILD && comp.nodes[root].q[3][s] > 0)
         .expect("a child with a positive max-x offset");
     comp.nodes[root].q[3][slot] -= 1;
-    let e = comp.validate().expect_err("a shrunken box must be reported");
+    let e = comp
+        .validate()
+        .expect_err("a shrunken box must be reported");
     assert!(e.contains("does not contain"), "{e}");
 }

@@ -166,7 +166,11 @@ where
             } else {
                 cost += area as f64 * inv;
                 let node = &self.nodes[r as usize];
-                let kids = node.children().iter().filter(|&&c| c != EMPTY_CHILD).count();
+                let kids = node
+                    .children()
+                    .iter()
+                    .filter(|&&c| c != EMPTY_CHILD)
+                    .count();
                 for (slot, &c) in node.children().iter().enumerate() {
                     if c != EMPTY_CHILD {
                         let area = node.child_bounds(slot).area();
