@@ -1,14 +1,18 @@
 //! Scalar-vs-SIMD equivalence: the scalar BVH2 traversal (the oracle), and the
 //! single-ray SIMD kernel, the packet kernel and the stream kernel of both the BVH4 and
-//! the BVH8, get the same rays and must return bit-identical hits (primitive, `t`, `u`, `v`: the kernels
-//! are twins of the scalar test, the same operations in the same order) and the same
-//! occlusion answer.
+//! the BVH8, with exact and with compressed (quantised) nodes, get the same rays and must
+//! return bit-identical hits (primitive, `t`, `u`, `v`: the kernels are twins of the
+//! scalar test, the same operations in the same order, and a compressed node's boxes
+//! only ever grow) and the same occlusion answer. Compressed trees run with every
+//! kernel's prefetch on, exact ones with the defaults, so both paths are exercised.
 
 mod common;
 
 use common::*;
 use glam::Vec3;
-use packet_render::accel::{Accel, Bvh, Bvh2, NodeWidth, Primitives, Triangles, Width};
+use packet_render::accel::{
+    Accel, Bvh, Bvh2, BvhNode, NodeWidth, Prefetch, Primitives, QNode, Triangles, WideNode, Width,
+};
 use packet_render::geometry::{Aabb, Hit, Ray};
 use packet_render::scene::Camera;
 
@@ -31,19 +35,41 @@ fn same_hit(a: Option<Hit>, b: Option<Hit>) -> bool {
     }
 }
 
-/// Runs the scalar path and both widths' single-ray and packet paths on `rays` (closest
-/// hit and occlusion) and compares.
+/// Runs the scalar path and both widths' single-ray, packet and stream paths, on exact
+/// and compressed nodes, on `rays` (closest hit and occlusion) and compares.
 fn check(name: &str, tris: &Triangles, rays: &[Ray]) {
-    check_width::<4>(name, tris, rays);
-    check_width::<8>(name, tris, rays);
+    check_width::<4, BvhNode<4>>(name, tris, rays);
+    check_width::<8, BvhNode<8>>(name, tris, rays);
+    check_width::<4, QNode<4>>(name, tris, rays);
+    check_width::<8, QNode<8>>(name, tris, rays);
 }
 
-fn check_width<const N: usize>(name: &str, tris: &Triangles, rays: &[Ray])
+/// An N-wide tree with node type `T`, validated; compressed trees prefetch everywhere.
+fn build<P: Primitives, const N: usize, T: WideNode<N>>(prims: P) -> Bvh<P, N, T>
 where
     Width<N>: NodeWidth,
 {
+    let mut bvh = Bvh::<P, N, T>::build(prims);
+    if let Err(e) = bvh.validate() {
+        panic!("bvh{N} (compressed: {}): {e}", T::COMPRESSED);
+    }
+    if T::COMPRESSED {
+        bvh.set_prefetch(Prefetch {
+            single: true,
+            packet: true,
+            stream: true,
+        });
+    }
+    bvh
+}
+
+fn check_width<const N: usize, T: WideNode<N>>(name: &str, tris: &Triangles, rays: &[Ray])
+where
+    Width<N>: NodeWidth,
+{
+    let name = &format!("{name} (bvh{N}, compressed nodes: {})", T::COMPRESSED);
     let scalar = Bvh2::build(tris.clone());
-    let bvhn = Bvh::<_, N>::build(tris.clone());
+    let bvhn = build::<_, N, T>(tris.clone());
     let mut packet = vec![None; rays.len()];
     bvhn.closest_hit_batch(rays, &mut packet);
     let mut packet_occ = vec![false; rays.len()];
@@ -181,15 +207,20 @@ fn secondary_rays_agree_and_shadow_rays_stop_short() {
     check("on-surface", &tris, &on_surface);
 
     // A ray stopped at 0.99 of its hit distance is unoccluded on every path.
-    stops_short::<4>(&tris, &oracle, &cam);
-    stops_short::<8>(&tris, &oracle, &cam);
+    stops_short::<4, BvhNode<4>>(&tris, &oracle, &cam);
+    stops_short::<8, BvhNode<8>>(&tris, &oracle, &cam);
+    stops_short::<4, QNode<4>>(&tris, &oracle, &cam);
+    stops_short::<8, QNode<8>>(&tris, &oracle, &cam);
 }
 
-fn stops_short<const N: usize>(tris: &Triangles, oracle: &Bvh2<Triangles>, cam: &[Ray])
-where
+fn stops_short<const N: usize, T: WideNode<N>>(
+    tris: &Triangles,
+    oracle: &Bvh2<Triangles>,
+    cam: &[Ray],
+) where
     Width<N>: NodeWidth,
 {
-    let bvhn = Bvh::<_, N>::build(tris.clone());
+    let bvhn = build::<_, N, T>(tris.clone());
     let short: Vec<Ray> = cam
         .iter()
         .filter_map(|r| {
@@ -229,18 +260,20 @@ fn random_and_axis_parallel_rays_agree() {
 /// of their packet untouched.
 #[test]
 fn invalid_lanes_never_hit_or_poison_neighbours() {
-    invalid_lanes::<4>();
-    invalid_lanes::<8>();
+    invalid_lanes::<4, BvhNode<4>>();
+    invalid_lanes::<8, BvhNode<8>>();
+    invalid_lanes::<4, QNode<4>>();
+    invalid_lanes::<8, QNode<8>>();
 }
 
-fn invalid_lanes<const N: usize>()
+fn invalid_lanes<const N: usize, T: WideNode<N>>()
 where
     Width<N>: NodeWidth,
 {
     let tris = mesh();
     let b = bounds_of(&tris);
     let rays = camera_rays(&b, 32, 32);
-    let bvhn = Bvh::<_, N>::build(tris.clone());
+    let bvhn = build::<_, N, T>(tris.clone());
     let mut clean = vec![None; rays.len()];
     bvhn.closest_hit_batch(&rays, &mut clean);
     let mut poisoned = rays.clone();
@@ -315,11 +348,13 @@ where
 /// hits must match exactly (same sphere, bit-identical t) and so must occlusion.
 #[test]
 fn sphere_packets_match_the_scalar_test() {
-    sphere_packets::<4>();
-    sphere_packets::<8>();
+    sphere_packets::<4, BvhNode<4>>();
+    sphere_packets::<8, BvhNode<8>>();
+    sphere_packets::<4, QNode<4>>();
+    sphere_packets::<8, QNode<8>>();
 }
 
-fn sphere_packets<const N: usize>()
+fn sphere_packets<const N: usize, T: WideNode<N>>()
 where
     Width<N>: NodeWidth,
 {
@@ -333,7 +368,7 @@ where
     let mut rays = camera_rays(&bounds, 64, 64);
     rays.extend(random_rays(&bounds, 4096, 21));
     let scalar = Bvh2::build(spheres.clone());
-    let bvhn = Bvh::<_, N>::build(spheres);
+    let bvhn = build::<_, N, T>(spheres);
     let mut packet = vec![None; rays.len()];
     bvhn.closest_hit_batch(&rays, &mut packet);
     let mut occ = vec![false; rays.len()];
@@ -370,18 +405,20 @@ where
 /// packets; lanes past `len` hold rays that would hit and are ignored.
 #[test]
 fn soa_packets_match_single_rays_and_ignore_lanes_past_len() {
-    soa_packets::<4>();
-    soa_packets::<8>();
+    soa_packets::<4, BvhNode<4>>();
+    soa_packets::<8, BvhNode<8>>();
+    soa_packets::<4, QNode<4>>();
+    soa_packets::<8, QNode<8>>();
 }
 
-fn soa_packets<const N: usize>()
+fn soa_packets<const N: usize, T: WideNode<N>>()
 where
     Width<N>: NodeWidth,
 {
     use packet_render::geometry::RayPacket;
     let tris = mesh();
     let rays = camera_rays(&bounds_of(&tris), 32, 32);
-    let bvh = Bvh::<_, N>::build(tris.clone());
+    let bvh = build::<_, N, T>(tris.clone());
     let mut checked = 0;
     for (k, chunk) in rays.chunks(16).enumerate() {
         let len = 16 - k % 5; // full packets and partial ones

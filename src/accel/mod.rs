@@ -22,8 +22,9 @@ pub mod spatial;
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvhn::{
-    Bvh, Bvh4, Bvh4Node, Bvh8, Bvh8Node, BvhNode, NodeWidth, PACKET_MIN_ACTIVE, STREAM_MIN_BATCH,
-    STREAM_MIN_RAYS, Width, prefers_stream,
+    Bvh, Bvh4, Bvh4Node, Bvh4QNode, Bvh4c, Bvh8, Bvh8Node, Bvh8QNode, Bvh8c, BvhNode, NodeWidth,
+    PACKET_MIN_ACTIVE, Prefetch, QNode, STREAM_MIN_BATCH, STREAM_MIN_RAYS, WideNode, Width,
+    prefers_stream,
 };
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
@@ -137,6 +138,10 @@ pub enum AccelKind {
     Bvh2,
     Bvh4,
     Bvh8,
+    /// The BVH4 with compressed (quantised) nodes.
+    Bvh4c,
+    /// The BVH8 with compressed (quantised) nodes.
+    Bvh8c,
     Grid,
     Octree,
     KdTree,
@@ -148,6 +153,8 @@ impl AccelKind {
         AccelKind::Bvh2,
         AccelKind::Bvh4,
         AccelKind::Bvh8,
+        AccelKind::Bvh4c,
+        AccelKind::Bvh8c,
         AccelKind::Grid,
         AccelKind::Octree,
         AccelKind::KdTree,
@@ -159,6 +166,8 @@ impl AccelKind {
             AccelKind::Bvh2 => "bvh2",
             AccelKind::Bvh4 => "bvh4",
             AccelKind::Bvh8 => "bvh8",
+            AccelKind::Bvh4c => "bvh4c",
+            AccelKind::Bvh8c => "bvh8c",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
             AccelKind::KdTree => "kdtree",
@@ -172,6 +181,8 @@ impl AccelKind {
             AccelKind::Bvh2 => Box::new(Bvh2::build(prims)),
             AccelKind::Bvh4 => Box::new(Bvh4::build(prims)),
             AccelKind::Bvh8 => Box::new(Bvh8::build(prims)),
+            AccelKind::Bvh4c => Box::new(Bvh4c::build(prims)),
+            AccelKind::Bvh8c => Box::new(Bvh8c::build(prims)),
             AccelKind::Grid => Box::new(Grid::build(prims)),
             AccelKind::Octree => Box::new(Octree::build(prims)),
             AccelKind::KdTree => Box::new(KdTree::build(prims)),

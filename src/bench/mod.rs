@@ -18,7 +18,9 @@ pub mod lecture;
 pub mod precision;
 pub mod sweep;
 
-use crate::accel::{Accel, AccelKind, Triangles};
+use crate::accel::{
+    Accel, AccelKind, Bvh, BvhNode, NodeWidth, Prefetch, QNode, Triangles, WideNode, Width,
+};
 use crate::geometry::{Hit, Ray, RayPacket, orthonormal_basis};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -314,7 +316,7 @@ impl TraceMode for Streamed {
     }
 }
 
-/// The modes `packet-render bench` knows, by name.
+/// The modes `packet-render bench` runs by default, by name.
 pub const MODES: &[&str] = &[
     "scalar-bvh2",
     "bvh4-single",
@@ -325,40 +327,110 @@ pub const MODES: &[&str] = &[
     "bvh8-stream",
 ];
 
-/// Builds a mode over `tris` (the mesh in file order).
-pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
-    let tris = tris.clone();
-    match name {
-        "scalar-bvh2" => Some(Box::new(SingleRay {
-            name: "scalar-bvh2",
-            accel: AccelKind::Bvh2.build(tris),
-        })),
-        "bvh4-single" => Some(Box::new(SingleRay {
-            name: "bvh4-single",
-            accel: AccelKind::Bvh4.build(tris),
-        })),
-        "bvh4-packet" => Some(Box::new(Batched {
-            name: "bvh4-packet",
-            accel: AccelKind::Bvh4.build(tris),
-        })),
-        "bvh8-single" => Some(Box::new(SingleRay {
-            name: "bvh8-single",
-            accel: AccelKind::Bvh8.build(tris),
-        })),
-        "bvh8-packet" => Some(Box::new(Batched {
-            name: "bvh8-packet",
-            accel: AccelKind::Bvh8.build(tris),
-        })),
-        "bvh4-stream" => Some(Box::new(Streamed {
-            name: "bvh4-stream",
-            accel: AccelKind::Bvh4.build(tris),
-        })),
-        "bvh8-stream" => Some(Box::new(Streamed {
-            name: "bvh8-stream",
-            accel: AccelKind::Bvh8.build(tris),
-        })),
-        _ => None,
+/// The same kernels on compressed nodes (`bvh4c`, `bvh8c`: child boxes quantised to 8
+/// bits per plane), run when asked for by name.
+pub const COMPRESSED_MODES: &[&str] = &[
+    "bvh4c-single",
+    "bvh4c-packet",
+    "bvh4c-stream",
+    "bvh8c-single",
+    "bvh8c-packet",
+    "bvh8c-stream",
+];
+
+/// Every N-wide mode with node prefetching forced on (`+pf`) or off (`+nopf`) for its
+/// kernel, whatever [`Prefetch::default`] says: the A/B of the prefetch.
+pub const PREFETCH_MODES: &[&str] = &[
+    "bvh4-single+pf",
+    "bvh4-single+nopf",
+    "bvh4-packet+pf",
+    "bvh4-packet+nopf",
+    "bvh4-stream+pf",
+    "bvh4-stream+nopf",
+    "bvh8-single+pf",
+    "bvh8-single+nopf",
+    "bvh8-packet+pf",
+    "bvh8-packet+nopf",
+    "bvh8-stream+pf",
+    "bvh8-stream+nopf",
+    "bvh4c-single+pf",
+    "bvh4c-single+nopf",
+    "bvh4c-packet+pf",
+    "bvh4c-packet+nopf",
+    "bvh4c-stream+pf",
+    "bvh4c-stream+nopf",
+    "bvh8c-single+pf",
+    "bvh8c-single+nopf",
+    "bvh8c-packet+pf",
+    "bvh8c-packet+nopf",
+    "bvh8c-stream+pf",
+    "bvh8c-stream+nopf",
+];
+
+/// The name of a mode `bench` knows, as a `'static` string.
+pub fn known_mode(name: &str) -> Option<&'static str> {
+    MODES
+        .iter()
+        .chain(COMPRESSED_MODES)
+        .chain(PREFETCH_MODES)
+        .copied()
+        .find(|&m| m == name)
+}
+
+/// An N-wide BVH over `tris` with node type `T`, prefetching in `kernel` forced to
+/// `prefetch` where given.
+fn wide_accel<const N: usize, T: WideNode<N>>(
+    tris: Triangles,
+    kernel: &str,
+    prefetch: Option<bool>,
+) -> Box<dyn Accel>
+where
+    Width<N>: NodeWidth,
+{
+    let mut bvh = Bvh::<Triangles, N, T>::build(tris);
+    if let Some(on) = prefetch {
+        let mut p = Prefetch::default();
+        match kernel {
+            "single" => p.single = on,
+            "packet" => p.packet = on,
+            _ => p.stream = on,
+        }
+        bvh.set_prefetch(p);
     }
+    Box::new(bvh)
+}
+
+/// Builds a mode over `tris` (the mesh in file order): `scalar-bvh2`, or
+/// `<structure>-<kernel>[+pf|+nopf]` with structure `bvh4`, `bvh8`, `bvh4c` or `bvh8c`
+/// and kernel `single`, `packet` or `stream`.
+pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
+    let name = known_mode(name)?;
+    let tris = tris.clone();
+    if name == "scalar-bvh2" {
+        return Some(Box::new(SingleRay {
+            name,
+            accel: AccelKind::Bvh2.build(tris),
+        }));
+    }
+    let (base, prefetch) = match name.split_once('+') {
+        None => (name, None),
+        Some((b, "pf")) => (b, Some(true)),
+        Some((b, _)) => (b, Some(false)),
+    };
+    let (structure, kernel) = base.split_once('-')?;
+    let accel = match structure {
+        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch),
+        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch),
+        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch),
+        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch),
+        _ => return None,
+    };
+    Some(match kernel {
+        "single" => Box::new(SingleRay { name, accel }),
+        "packet" => Box::new(Batched { name, accel }),
+        "stream" => Box::new(Streamed { name, accel }),
+        _ => return None,
+    })
 }
 
 /// Per-pixel primary results: `t` and triangle (`u32::MAX` for a miss).
@@ -939,10 +1011,15 @@ pub fn run(
     }
     crate::scene::limits::validate_dimensions(opts.width, opts.height, 1, 0)?;
     for m in &opts.modes {
-        if !MODES.contains(&m.as_str()) {
+        if known_mode(m).is_none() {
             return Err(crate::Error::parameter(
                 "mode",
-                format!("unknown mode '{m}', expected one of {}", MODES.join(", ")),
+                format!(
+                    "unknown mode '{m}', expected one of {}, {} or a prefetch variant \
+                     (<mode>+pf, <mode>+nopf)",
+                    MODES.join(", "),
+                    COMPRESSED_MODES.join(", ")
+                ),
             ));
         }
     }

@@ -14,6 +14,7 @@ pub mod compact;
 pub mod exact_sums;
 pub mod kernels;
 pub mod prefetch;
+pub mod quant;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 use wide::{f32x4, f32x8, f32x16};

@@ -21,9 +21,15 @@
 //! (`closest_stream`/`any_stream`): the rays binned by octant, each node tested once for
 //! the list of rays that reached it (`stream.rs`).
 //!
+//! Nodes come exact ([`BvhNode`], the default) or compressed ([`QNode`]: child boxes
+//! quantised to 8 bits per plane against the node's box, rounded outward, half or a
+//! quarter of the bytes); every traversal is generic over [`WideNode`], so the same
+//! kernels run on both. `validate()` checks a built tree's boxes against its leaves.
+//!
 //! One concern per file, as Embree keeps node types, node intersectors, single-ray and
 //! hybrid (packet) traversal apart: `node.rs` (layout and leaf encoding), `stack.rs`,
-//! `tree.rs` (the structure, its build and the `Accel` entry points), `collapse.rs`,
+//! `qnode.rs` (the compressed node), `tree.rs` (the structure, its build and the
+//! `Accel` entry points), `validate.rs`, `collapse.rs`,
 //! `single.rs`, `packet_setup.rs`, `packet_bounds.rs`, `packet.rs` and `stream.rs`.
 
 mod collapse;
@@ -31,14 +37,17 @@ mod node;
 mod packet;
 mod packet_bounds;
 mod packet_setup;
+mod qnode;
 mod single;
 mod stack;
 mod stream;
 #[cfg(test)]
 mod tests;
 mod tree;
+mod validate;
 
-pub use node::{Bvh4Node, Bvh8Node, BvhNode, NodeWidth, Width};
+pub use node::{Bvh4Node, Bvh8Node, BvhNode, NodeWidth, WideNode, Width};
 pub use packet::PACKET_MIN_ACTIVE;
+pub use qnode::{Bvh4QNode, Bvh8QNode, QNode};
 pub use stream::{STREAM_MIN_BATCH, STREAM_MIN_RAYS, prefers_stream};
-pub use tree::{Bvh, Bvh4, Bvh8};
+pub use tree::{Bvh, Bvh4, Bvh4c, Bvh8, Bvh8c, Prefetch};

@@ -1,5 +1,7 @@
 //! The N-wide node: children's bounds as lane arrays and packed child references,
-//! and the leaf encoding of a child reference.
+//! the leaf encoding of a child reference, and [`WideNode`], what every traversal asks
+//! of a node (so that single-ray, packet and stream kernels run unchanged on the exact
+//! [`BvhNode`] and on the compressed [`QNode`](super::QNode)).
 
 use crate::geometry::Aabb;
 use crate::simd::{F4, F8, Lanes};
@@ -29,6 +31,55 @@ const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
 const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 64);
 const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
 const _: () = assert!(std::mem::align_of::<Bvh8Node>() == 64);
+
+/// What the traversals read from an N-wide node: its children's box planes as lane
+/// arrays (in [`BvhNode::planes`]' order) and its child references. Implemented by the
+/// exact [`BvhNode`] (planes read in place) and the compressed
+/// [`QNode`](super::QNode) (planes decoded per visit).
+pub trait WideNode<const N: usize>: Copy + Send + Sync + std::fmt::Debug + 'static {
+    /// Whether the child boxes are quantised (`bvh4c`, `bvh8c`).
+    const COMPRESSED: bool;
+    /// The planes as the traversal reads them: a reference into the node, or the
+    /// decoded copy.
+    type Planes<'a>: std::ops::Deref<Target = [[f32; N]; 6]>
+    where
+        Self: 'a;
+
+    /// The node for the exact child boxes and references of `node`; every box it
+    /// reports contains the exact one.
+    fn from_exact(node: &BvhNode<N>) -> Self;
+    /// The six plane arrays `min_x, min_y, min_z, max_x, max_y, max_z`.
+    fn planes(&self) -> Self::Planes<'_>;
+    /// Child references ([`EMPTY_CHILD`] for an unused slot).
+    fn children(&self) -> &[u32; N];
+
+    /// Bounds of child slot `c`, as the traversal sees them.
+    fn child_bounds(&self, c: usize) -> Aabb {
+        let p = self.planes();
+        Aabb::new(
+            Vec3::new(p[0][c], p[1][c], p[2][c]),
+            Vec3::new(p[3][c], p[4][c], p[5][c]),
+        )
+    }
+}
+
+impl<const N: usize> WideNode<N> for BvhNode<N> {
+    const COMPRESSED: bool = false;
+    type Planes<'a> = &'a [[f32; N]; 6];
+
+    #[inline(always)]
+    fn from_exact(node: &BvhNode<N>) -> Self {
+        *node
+    }
+    #[inline(always)]
+    fn planes(&self) -> &[[f32; N]; 6] {
+        &self.planes
+    }
+    #[inline(always)]
+    fn children(&self) -> &[u32; N] {
+        &self.children
+    }
+}
 
 /// The node widths there are kernels for, and the lane type of their slab test.
 pub trait NodeWidth {
@@ -65,14 +116,4 @@ pub(super) fn leaf_range(r: u32) -> std::ops::Range<usize> {
     let first = (r & FIRST_MASK) as usize;
     let count = ((r & !LEAF) >> COUNT_SHIFT) as usize;
     first..first + count
-}
-
-impl<const N: usize> BvhNode<N> {
-    /// Bounds of child slot `c`.
-    pub fn child_bounds(&self, c: usize) -> Aabb {
-        Aabb::new(
-            Vec3::new(self.planes[0][c], self.planes[1][c], self.planes[2][c]),
-            Vec3::new(self.planes[3][c], self.planes[4][c], self.planes[5][c]),
-        )
-    }
 }

@@ -1,7 +1,7 @@
 //! Packet (hybrid) traversal: closest hit and occlusion of a packet group, with the
 //! ray-by-ray finish of a subtree when few lanes stay active.
 
-use super::node::{NodeWidth, Width, is_leaf, leaf_range};
+use super::node::{NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::packet_bounds::{PACKET_BOUNDS_MIN_NODES, PacketBounds};
 use super::packet_setup::{PacketRays, PacketSetup, for_each_bit, lane_query};
 use super::stack::{PACKET_STACK, Stack, insert_far_to_near};
@@ -25,7 +25,7 @@ struct PacketHits<L: Lanes> {
     hit: u32,
 }
 
-impl<P: Primitives, const N: usize> Bvh<P, N>
+impl<P: Primitives, const N: usize, T: WideNode<N>> Bvh<P, N, T>
 where
     Width<N>: NodeWidth,
 {
@@ -121,15 +121,16 @@ where
                 tmax = L::from_array(new_t);
             } else if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
+                let (planes, children) = (node.planes(), node.children());
                 let mut enters = [L::splat(0.0); N];
                 let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
-                let mut cand = bounds.candidates(node);
+                let mut cand = bounds.candidates(&planes, children);
                 while cand != 0 {
                     let c = cand.trailing_zeros() as usize;
                     cand &= cand - 1;
-                    let (enter, bits) = p.child_test::<SHARED, N>(node, c, tcull);
+                    let (enter, bits) = p.child_test::<SHARED, N>(&planes, c, tcull);
                     if bits & active != 0 {
                         enters[c] = enter;
                         // insertion sort, far to near, by the representative lane's entry
@@ -138,11 +139,16 @@ where
                     }
                 }
                 if n > 0 {
+                    if self.prefetch.packet && n > 1 {
+                        for &(c, _) in &order[..n] {
+                            self.prefetch_child(children[c]);
+                        }
+                    }
                     for &(c, _) in &order[..n - 1] {
-                        stack.push((node.children[c], enters[c]));
+                        stack.push((children[c], enters[c]));
                     }
                     let c = order[n - 1].0;
-                    cur = node.children[c];
+                    cur = children[c];
                     cur_enter = enters[c];
                     continue;
                 }
@@ -272,18 +278,29 @@ where
                 }
             } else if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
+                let (planes, children) = (node.planes(), node.children());
                 let mut first = None;
-                let mut cand = bounds.candidates(node);
+                let mut pushed = false;
+                let mut cand = bounds.candidates(&planes, children);
                 while cand != 0 {
                     let c = cand.trailing_zeros() as usize;
                     cand &= cand - 1;
-                    let (enter, bits) = p.child_test::<SHARED, N>(node, c, tcull);
+                    let (enter, bits) = p.child_test::<SHARED, N>(&planes, c, tcull);
                     if bits & active != 0 {
                         match first {
-                            None => first = Some((node.children[c], enter)),
-                            Some(_) => stack.push((node.children[c], enter)),
+                            None => first = Some((children[c], enter)),
+                            Some(_) => {
+                                if self.prefetch.packet {
+                                    self.prefetch_child(children[c]);
+                                    pushed = true;
+                                }
+                                stack.push((children[c], enter));
+                            }
                         }
                     }
+                }
+                if pushed && let Some((r, _)) = first {
+                    self.prefetch_child(r);
                 }
                 if let Some((r, e)) = first {
                     cur = r;

@@ -1,7 +1,7 @@
 //! Whole-packet interval bounds: one conservative test of all of a node's children
 //! for every lane of a packet group.
 
-use super::node::{BvhNode, EMPTY_CHILD};
+use super::node::EMPTY_CHILD;
 use super::packet_setup::PacketRays;
 use crate::geometry::ROBUST_FAR_SCALE;
 use crate::simd::Lanes;
@@ -92,23 +92,26 @@ impl<NL: Lanes> PacketBounds<NL> {
         b
     }
 
-    /// Bits of the children of `node` that some lane may enter (all non-empty children
-    /// when the bounds are off).
+    /// Bits of the children of a node (its `planes` and `children`) that some lane may
+    /// enter (all non-empty children when the bounds are off).
     #[inline(always)]
-    pub(super) fn candidates<const N: usize>(&self, node: &BvhNode<N>) -> u32 {
+    pub(super) fn candidates<const N: usize>(
+        &self,
+        planes: &[[f32; N]; 6],
+        children: &[u32; N],
+    ) -> u32 {
         if !self.enabled {
-            return node
-                .children
+            return children
                 .iter()
                 .enumerate()
                 .fold(0, |m, (c, &r)| m | u32::from(r != EMPTY_CHILD) << c);
         }
         let lo = |a: usize| {
-            let x = NL::load(&node.planes[self.near[a]]) - self.o_near[a];
+            let x = NL::load(&planes[self.near[a]]) - self.o_near[a];
             (x * self.inv[a][0]).minps(x * self.inv[a][1])
         };
         let hi = |a: usize| {
-            let x = NL::load(&node.planes[self.far[a]]) - self.o_far[a];
+            let x = NL::load(&planes[self.far[a]]) - self.o_far[a];
             (x * self.inv_far[a][0]).maxps(x * self.inv_far[a][1])
         };
         let enter = lo(0).maxps(lo(1).maxps(lo(2).maxps(self.tmin)));

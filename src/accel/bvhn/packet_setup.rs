@@ -2,7 +2,6 @@
 //! dominant axis into groups that share slab planes and watertight shear; the
 //! per-lane child slab test.
 
-use super::node::BvhNode;
 use crate::geometry::{LaneRays, ROBUST_FAR_SCALE, RayQuery};
 use crate::simd::Lanes;
 use crate::simd::kernels::{PacketShear, RayLanes};
@@ -22,16 +21,16 @@ pub(super) struct PacketRays<L: Lanes> {
 }
 
 impl<L: Lanes> PacketRays<L> {
-    /// Slab test of child `c` for every lane: entry distances and hit bits. `tcull` is
-    /// the closest hit so far, already scaled by `ROBUST_FAR_SCALE`.
+    /// Slab test of child `c` of a node (its `planes`) for every lane: entry distances
+    /// and hit bits. `tcull` is the closest hit so far, already scaled by
+    /// `ROBUST_FAR_SCALE`.
     #[inline(always)]
     pub(super) fn child_test<const SHARED: bool, const N: usize>(
         &self,
-        node: &BvhNode<N>,
+        p: &[[f32; N]; 6],
         c: usize,
         tcull: L,
     ) -> (L, u32) {
-        let p = &node.planes;
         let o = &self.shear.shared_origin;
         // With a shared origin, `plane - o` is one scalar per plane, broadcast: the same
         // value every lane would compute.

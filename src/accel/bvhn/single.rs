@@ -1,7 +1,7 @@
 //! Single-ray traversal: closest hit, any hit and the filtered query, one N-wide slab
 //! test per node.
 
-use super::node::{BvhNode, NodeWidth, Width, is_leaf, leaf_range};
+use super::node::{NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::stack::{SINGLE_STACK, Stack};
 use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
@@ -43,11 +43,11 @@ impl<L: Lanes> NodeRay<L> {
         }
     }
 
-    /// Slab test against a node's children: entry distances and the bits of the
-    /// children entered within `[tmin, tmax]`. The same arithmetic as `Aabb::intersect`.
+    /// Slab test against a node's children (its `planes`): entry distances and the bits
+    /// of the children entered within `[tmin, tmax]`. The same arithmetic as
+    /// `Aabb::intersect`.
     #[inline(always)]
-    fn test<const N: usize>(&self, node: &BvhNode<N>, tmax: f32) -> (L, u32) {
-        let p = &node.planes;
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
         let d = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv[a];
         let f = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv_far[a];
         let enter =
@@ -64,7 +64,7 @@ impl<L: Lanes> NodeRay<L> {
 /// pushed run is insertion-sorted in place, far to near, so no scratch array is filled.
 #[inline(always)]
 fn order_children<L: Lanes, const N: usize>(
-    node: &BvhNode<N>,
+    children: &[u32; N],
     enter: L,
     mask: u32,
     stack: &mut Stack<(u32, f32), SINGLE_STACK>,
@@ -72,12 +72,12 @@ fn order_children<L: Lanes, const N: usize>(
     let i0 = mask.trailing_zeros() as usize;
     let rest = mask & (mask - 1);
     if rest == 0 {
-        return node.children[i0];
+        return children[i0];
     }
     let t = enter.to_array();
     let t = t.as_ref();
     let i1 = rest.trailing_zeros() as usize;
-    let (a, b) = ((node.children[i0], t[i0]), (node.children[i1], t[i1]));
+    let (a, b) = ((children[i0], t[i0]), (children[i1], t[i1]));
     let mut rest = rest & (rest - 1);
     if rest == 0 {
         let (near, far) = if b.1 < a.1 { (b, a) } else { (a, b) };
@@ -89,14 +89,14 @@ fn order_children<L: Lanes, const N: usize>(
     stack.push(b);
     while rest != 0 {
         let i = rest.trailing_zeros() as usize;
-        stack.push((node.children[i], t[i]));
+        stack.push((children[i], t[i]));
         rest &= rest - 1;
     }
     stack.sort_top_far_to_near(base);
     stack.pop().expect("three or more entries were pushed").0
 }
 
-impl<P: Primitives, const N: usize> Bvh<P, N>
+impl<P: Primitives, const N: usize, T: WideNode<N>> Bvh<P, N, T>
 where
     Width<N>: NodeWidth,
 {
@@ -110,9 +110,10 @@ where
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (enter, mask) = ray.test(node, tmax);
+                let (enter, mask) = ray.test(&node.planes(), tmax);
                 if mask != 0 {
-                    cur = order_children(node, enter, mask, &mut stack);
+                    self.prefetch_entered(node.children(), mask, self.prefetch.single);
+                    cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;
                 }
             } else if let Some(h) = self.leaf_closest(q, cur, tmax) {
@@ -140,13 +141,15 @@ where
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (_, mask) = ray.test(node, q.tmax);
+                let (_, mask) = ray.test(&node.planes(), q.tmax);
                 if mask != 0 {
+                    let children = node.children();
+                    self.prefetch_entered(children, mask, self.prefetch.single);
                     let mut m = mask;
-                    cur = node.children[m.trailing_zeros() as usize];
+                    cur = children[m.trailing_zeros() as usize];
                     m &= m - 1;
                     while m != 0 {
-                        stack.push(node.children[m.trailing_zeros() as usize]);
+                        stack.push(children[m.trailing_zeros() as usize]);
                         m &= m - 1;
                     }
                     continue;
@@ -157,6 +160,19 @@ where
             match stack.pop() {
                 Some(r) => cur = r,
                 None => return false,
+            }
+        }
+    }
+
+    /// With `on`, prefetches the children of `mask` when there are two or more (a
+    /// lone child is read at once, too soon for a prefetch to help).
+    #[inline(always)]
+    pub(super) fn prefetch_entered(&self, children: &[u32; N], mask: u32, on: bool) {
+        if on && mask & (mask - 1) != 0 {
+            let mut m = mask;
+            while m != 0 {
+                self.prefetch_child(children[m.trailing_zeros() as usize]);
+                m &= m - 1;
             }
         }
     }
@@ -219,9 +235,9 @@ where
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (enter, mask) = ray.test(node, sink.tmax);
+                let (enter, mask) = ray.test(&node.planes(), sink.tmax);
                 if mask != 0 {
-                    cur = order_children(node, enter, mask, &mut stack);
+                    cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;
                 }
             } else if self.leaf_filtered(q, cur, sink) {

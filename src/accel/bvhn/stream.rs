@@ -40,14 +40,13 @@
 //! each, above everything still on the stack; an entry popped from the stack frees what
 //! lies above its parent's block (the stack is LIFO, so everything there is finished).
 
-use super::node::{BvhNode, NodeWidth, Width, is_leaf, leaf_range};
+use super::node::{NodeWidth, WideNode, Width, is_leaf};
 use super::stack::insert_far_to_near;
-use super::tree::{Bvh, Leaves};
+use super::tree::Bvh;
 use crate::accel::Primitives;
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
-use crate::simd::prefetch::prefetch;
 use std::cell::RefCell;
 
 /// Lists shorter than this finish their subtree ray by ray. 1 (only leaves ray by
@@ -185,8 +184,7 @@ struct OctantPlanes<L: Lanes> {
 
 impl<L: Lanes> OctantPlanes<L> {
     #[inline(always)]
-    fn new<const N: usize>(node: &BvhNode<N>, octant: usize) -> Self {
-        let p = &node.planes;
+    fn new<const N: usize>(p: &[[f32; N]; 6], octant: usize) -> Self {
         let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
         OctantPlanes {
             near: near.map(|i| L::load(&p[i])),
@@ -207,7 +205,7 @@ impl<L: Lanes> OctantPlanes<L> {
     }
 }
 
-impl<P: Primitives, const N: usize> Bvh<P, N>
+impl<P: Primitives, const N: usize, T: WideNode<N>> Bvh<P, N, T>
 where
     Width<N>: NodeWidth,
 {
@@ -279,7 +277,7 @@ where
             }
             let (below, above) = s.arena.split_at_mut(top);
             let list = &below[start..end];
-            let planes = OctantPlanes::<<Width<N> as NodeWidth>::L>::new(node, octant);
+            let planes = OctantPlanes::<<Width<N> as NodeWidth>::L>::new(&node.planes(), octant);
             // Pass 1: every ray against the N children (no loop-carried dependency but
             // the sum); pass 2: each entered child's list compacted from the masks.
             let mut sum = <<Width<N> as NodeWidth>::L as Lanes>::splat(0.0);
@@ -318,17 +316,13 @@ where
             // group are prefetched as they are pushed: 1M-triangle mesh, diffuse rays,
             // interleaved runs: 4.53/4.57 Mrays/s without, 4.25-4.68 with the nodes
             // only, 4.76/4.77 with both; the bunny's diffuse rays unchanged (6.80-6.86).
+            let children = node.children();
             for &(c, _) in &order[..n] {
-                let child = node.children[c];
-                if !is_leaf(child) {
-                    prefetch(&self.nodes[child as usize], 4);
-                } else if let Leaves::Triangles(groups) = &self.leaves
-                    && let Some(g) = groups.get(leaf_range(child).start)
-                {
-                    prefetch(g, 3);
+                if self.prefetch.stream {
+                    self.prefetch_child(children[c]);
                 }
                 s.stack.push(Entry {
-                    node: node.children[c],
+                    node: children[c],
                     start: (top + c * stride) as u32,
                     len: counts[c],
                     top: new_top,

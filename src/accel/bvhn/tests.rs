@@ -1,8 +1,9 @@
 //! Unit tests of the N-wide BVH internals (stack need, parallel collapse, packet bounds).
 use super::collapse::Collapse;
-use super::node::{EMPTY_CHILD, NodeWidth, Width};
+use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width};
 use super::packet_bounds::PacketBounds;
 use super::packet_setup::PacketSetup;
+use super::qnode::QNode;
 use super::stack::{PACKET_STACK, SINGLE_STACK};
 use super::tree::{Bvh, Bvh4, Bvh8, wide_build_options};
 use crate::accel::sah_build::build_tree;
@@ -118,15 +119,15 @@ fn packet_bounds_never_cull_a_child_a_lane_enters() {
                 PacketBounds::<<Width<N> as NodeWidth>::L>::new(&p, mask, p.tmax, shared, true);
             let tcull = p.tmax * Packet::splat(ROBUST_FAR_SCALE);
             for node in &bvh.nodes {
-                let cand = bounds.candidates(node);
+                let cand = bounds.candidates(&node.planes, &node.children);
                 for c in 0..N {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
                     let bits = if shared {
-                        p.child_test::<true, N>(node, c, tcull).1
+                        p.child_test::<true, N>(&node.planes, c, tcull).1
                     } else {
-                        p.child_test::<false, N>(node, c, tcull).1
+                        p.child_test::<false, N>(&node.planes, c, tcull).1
                     };
                     if bits & mask != 0 {
                         entered += 1;
@@ -194,4 +195,59 @@ fn stack_need_bounds_the_pending_entries() {
     assert!(b8.stack_need <= 7 * b8.info.max_depth);
     assert!(b8.info.max_depth < b4.info.max_depth);
     assert!(b8.stack_need < SINGLE_STACK);
+}
+
+/// A compressed tree is the exact tree with its boxes rounded outward: the same child
+/// references node for node, every quantised child box containing the exact one, half
+/// (BVH8) or a quarter (BVH4) of the node bytes; both validate.
+#[test]
+fn compressed_nodes_contain_the_exact_boxes_of_the_same_tree() {
+    fn check<const N: usize>(tris: &Triangles)
+    where
+        Width<N>: NodeWidth,
+    {
+        let exact = Bvh::<Triangles, N>::build(tris.clone());
+        let comp = Bvh::<Triangles, N, QNode<N>>::build(tris.clone());
+        exact.validate().expect("the exact tree validates");
+        comp.validate().expect("the compressed tree validates");
+        assert_eq!(exact.nodes.len(), comp.nodes.len());
+        let mut looser = 0;
+        for (e, c) in exact.nodes.iter().zip(&comp.nodes) {
+            assert_eq!(e.children, c.children);
+            for slot in (0..N).filter(|&s| e.children[s] != EMPTY_CHILD) {
+                let (eb, cb) = (e.child_bounds(slot), c.child_bounds(slot));
+                assert!(
+                    cb.min.cmple(eb.min).all() && cb.max.cmpge(eb.max).all(),
+                    "{cb:?} does not contain {eb:?}"
+                );
+                looser += usize::from(cb != eb);
+            }
+        }
+        assert!(looser > 0, "quantisation never rounded: suspicious");
+        let node_bytes = |b: usize| b * exact.nodes.len();
+        assert_eq!(
+            exact.info.memory_bytes - comp.info.memory_bytes,
+            node_bytes(size_of::<BvhNode<N>>() - size_of::<QNode<N>>())
+        );
+    }
+    let tris = soup();
+    check::<4>(&tris);
+    check::<8>(&tris);
+}
+
+/// `validate()` catches a quantised box that no longer contains its subtree: one
+/// maximum offset lowered by one step.
+#[test]
+fn validate_rejects_a_box_rounded_the_wrong_way() {
+    let mut comp = Bvh::<Triangles, 8, QNode<8>>::build(soup());
+    comp.validate().expect("as built");
+    let root = comp.root as usize;
+    let slot = (0..8)
+        .find(|&s| comp.nodes[root].children[s] != EMPTY_CHILD && comp.nodes[root].q[3][s] > 0)
+        .expect("a child with a positive max-x offset");
+    comp.nodes[root].q[3][slot] -= 1;
+    let e = comp
+        .validate()
+        .expect_err("a shrunken box must be reported");
+    assert!(e.contains("does not contain"), "{e}");
 }

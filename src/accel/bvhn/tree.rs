@@ -2,13 +2,15 @@
 //! collapse), its shape statistics, and the [`Accel`] entry points.
 
 use super::collapse::{Collapse, PARALLEL_COLLAPSE_LEVELS};
-use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, Width, is_leaf, leaf_range};
+use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, leaf_range};
+use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
 use crate::accel::sah_build::build_tree;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::TriGroup4;
+use crate::simd::prefetch::prefetch;
 use crate::simd::{PACKET_WIDTH, Packet};
 use std::time::Instant;
 
@@ -20,21 +22,47 @@ pub(super) enum Leaves<P> {
     Scalar { prims: P, ids: Vec<u32> },
 }
 
-/// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]).
-pub struct Bvh<P: Primitives, const N: usize> {
-    pub nodes: Vec<BvhNode<N>>,
+/// Which traversals prefetch the children they are about to visit (their nodes, or a
+/// leaf's first triangle group) as they push them. Measured per kernel (README, issue
+/// 12); [`Prefetch::default`] turns it on where it won.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Prefetch {
+    pub single: bool,
+    pub packet: bool,
+    pub stream: bool,
+}
+
+impl Default for Prefetch {
+    fn default() -> Self {
+        Prefetch {
+            single: false,
+            packet: false,
+            stream: true,
+        }
+    }
+}
+
+/// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]), with exact
+/// ([`BvhNode`], the default) or compressed ([`QNode`]) nodes: see [`WideNode`].
+pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
+    pub nodes: Vec<T>,
     pub(super) leaves: Leaves<P>,
     pub(super) root: u32,
     pub(super) info: AccelInfo,
     /// The most entries any traversal can have on its stack: the largest sum of
     /// (children - 1) along a root-to-leaf path.
     pub(super) stack_need: usize,
+    pub(super) prefetch: Prefetch,
 }
 
 /// The 4-wide BVH.
 pub type Bvh4<P> = Bvh<P, 4>;
 /// The 8-wide BVH.
 pub type Bvh8<P> = Bvh<P, 8>;
+/// The 4-wide BVH with compressed nodes (64 bytes each).
+pub type Bvh4c<P> = Bvh<P, 4, QNode<4>>;
+/// The 8-wide BVH with compressed nodes (128 bytes each).
+pub type Bvh8c<P> = Bvh<P, 8, QNode<8>>;
 
 /// Build parameters for 4-wide leaves. Triangle leaves are tested four at a time, so
 /// the SAH counts them in blocks of four (a leaf of 1-4 triangles costs one test): on
@@ -51,7 +79,7 @@ pub fn wide_build_options(simd_triangle_leaves: bool) -> Bvh2BuildOptions {
     }
 }
 
-impl<P: Primitives, const N: usize> Bvh<P, N>
+impl<P: Primitives, const N: usize, T: WideNode<N>> Bvh<P, N, T>
 where
     Width<N>: NodeWidth,
 {
@@ -74,6 +102,9 @@ where
             Some(t) => c.collapse(t, 0),
         };
         let Collapse { nodes, groups, .. } = c;
+        // Compressed nodes are quantised from the exact ones (for exact nodes this is
+        // the identity, collected in place).
+        let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
         let leaves = if triangles.is_some() {
             Leaves::Triangles(groups)
@@ -93,6 +124,7 @@ where
             root,
             info: AccelInfo::default(),
             stack_need: 0,
+            prefetch: Prefetch::default(),
         };
         let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
         assert!(
@@ -101,13 +133,18 @@ where
         );
         bvh.stack_need = stack_need;
         bvh.info = AccelInfo {
-            name: if N == 4 { "bvh4" } else { "bvh8" },
+            name: match (N, T::COMPRESSED) {
+                (4, false) => "bvh4",
+                (4, true) => "bvh4c",
+                (_, false) => "bvh8",
+                (_, true) => "bvh8c",
+            },
             primitives: n,
             build_ms: start.elapsed().as_secs_f64() * 1e3,
             nodes: bvh.nodes.len(),
             leaves: leaf_count,
             max_depth: depth,
-            memory_bytes: bvh.nodes.len() * std::mem::size_of::<BvhNode<N>>() + leaf_bytes,
+            memory_bytes: bvh.nodes.len() * std::mem::size_of::<T>() + leaf_bytes,
             sah_cost: sah,
         };
         bvh
@@ -129,8 +166,12 @@ where
             } else {
                 cost += area as f64 * inv;
                 let node = &self.nodes[r as usize];
-                let kids = node.children.iter().filter(|&&c| c != EMPTY_CHILD).count();
-                for (slot, &c) in node.children.iter().enumerate() {
+                let kids = node
+                    .children()
+                    .iter()
+                    .filter(|&&c| c != EMPTY_CHILD)
+                    .count();
+                for (slot, &c) in node.children().iter().enumerate() {
                     if c != EMPTY_CHILD {
                         let area = node.child_bounds(slot).area();
                         stack.push((c, d + 1, area, pending + kids - 1));
@@ -141,13 +182,31 @@ where
         (leaves, depth, cost, need)
     }
 
+    /// Which traversals prefetch (see [`Prefetch`]).
+    pub fn set_prefetch(&mut self, prefetch: Prefetch) {
+        self.prefetch = prefetch;
+    }
+
+    /// Prefetches what visiting child reference `r` reads first: its node (every
+    /// line), or its leaf's first triangle group.
+    #[inline(always)]
+    pub(super) fn prefetch_child(&self, r: u32) {
+        if !is_leaf(r) {
+            prefetch(&self.nodes[r as usize], 4);
+        } else if let Leaves::Triangles(groups) = &self.leaves
+            && let Some(g) = groups.get(leaf_range(r).start)
+        {
+            prefetch(g, 3);
+        }
+    }
+
     /// Bytes per primitive of nodes and leaves.
     pub fn bytes_per_primitive(&self) -> f64 {
         self.info.memory_bytes as f64 / self.info.primitives.max(1) as f64
     }
 }
 
-impl<P: Primitives, const N: usize> Accel for Bvh<P, N>
+impl<P: Primitives, const N: usize, T: WideNode<N>> Accel for Bvh<P, N, T>
 where
     Width<N>: NodeWidth,
 {
