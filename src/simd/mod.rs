@@ -11,7 +11,10 @@
 
 pub mod camera;
 pub mod compact;
+pub mod direct_light;
 pub mod kernels;
+pub mod lanes3;
+pub mod pow;
 pub mod prefetch;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
