@@ -275,33 +275,31 @@ fn shade_group_lanes(
             ns: batch.ns.lanes(j),
             base: batch.base.lanes(j),
             smooth: Packet::new(batch.smooth[j..j + 16].try_into().expect("16 lanes")),
-            wo: batch.dir.lanes(j).neg(),
+            wo: batch.dir.lanes(j).negated(),
             albedo: V3::splat(m.diffuse),
         };
-        if lit {
-            if let Some(c) = &m.checker {
-                // The winding normal, as the scalar shader's checker lookup.
-                let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
-                let outward = V3::select(front, ng, ng.neg());
-                let (a, mut redo) = checker_albedo(c, s.p, s.p_error, outward);
-                s.albedo = a;
-                redo &= active;
-                if redo != 0 {
-                    // Cell indices past 2^24: the scalar lookup, lane by lane.
-                    let mut xyz = (a.x.to_array(), a.y.to_array(), a.z.to_array());
-                    while redo != 0 {
-                        let i = redo.trailing_zeros() as usize;
-                        redo &= redo - 1;
-                        let o = outward.lane(i);
-                        let v = m.albedo_on_surface(s.p.lane(i), s.p_error.lane(i), o);
-                        (xyz.0[i], xyz.1[i], xyz.2[i]) = (v.x, v.y, v.z);
-                    }
-                    s.albedo = V3 {
-                        x: Packet::new(xyz.0),
-                        y: Packet::new(xyz.1),
-                        z: Packet::new(xyz.2),
-                    };
+        if lit && let Some(c) = &m.checker {
+            // The winding normal, as the scalar shader's checker lookup.
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
+            let outward = V3::select(front, ng, ng.negated());
+            let (a, mut redo) = checker_albedo(c, s.p, s.p_error, outward);
+            s.albedo = a;
+            redo &= active;
+            if redo != 0 {
+                // Cell indices past 2^24: the scalar lookup, lane by lane.
+                let mut xyz = (a.x.to_array(), a.y.to_array(), a.z.to_array());
+                while redo != 0 {
+                    let i = redo.trailing_zeros() as usize;
+                    redo &= redo - 1;
+                    let o = outward.lane(i);
+                    let v = m.albedo_on_surface(s.p.lane(i), s.p_error.lane(i), o);
+                    (xyz.0[i], xyz.1[i], xyz.2[i]) = (v.x, v.y, v.z);
                 }
+                s.albedo = V3 {
+                    x: Packet::new(xyz.0),
+                    y: Packet::new(xyz.1),
+                    z: Packet::new(xyz.2),
+                };
             }
         }
         for i in 0..n {
@@ -361,7 +359,7 @@ fn shade_group_lanes(
                 ns: splat(&batch.ns),
                 base: splat(&batch.base),
                 smooth: Packet::splat(batch.smooth[k]),
-                wo: splat(&batch.dir).neg(),
+                wo: splat(&batch.dir).negated(),
                 albedo: V3::splat(albedo[k - range.start]),
             };
             let samples = plan.shadow;

@@ -52,11 +52,11 @@ pub fn reflectance(s: &SurfaceLanes, hl: &Highlight, wi: V3) -> (Packet, V3) {
     let mask = cos_s.simd_gt(zero) & (s.smooth | wi.dot(s.ng).simd_gt(zero));
     let mut f = s.albedo.scale(Packet::splat(FRAC_1_PI) * cos_s);
     if hl.specular != Vec3::ZERO {
-        let h = wi.add(s.wo).normalize_or_zero();
+        let h = wi.plus(s.wo).normalize_or_zero();
         // f32::max(x, 0) returns 0 for a NaN x; maxps(x, 0) returns its second operand then.
         let cos_h = h.dot(s.ns).fast_max(zero);
         let p = pow(cos_h, Packet::splat(hl.shininess));
-        f = f.add(V3::splat(hl.specular).scale(p));
+        f = f.plus(V3::splat(hl.specular).scale(p));
     }
     (mask, f)
 }
@@ -75,9 +75,9 @@ pub struct ShadowLanes {
 /// Lane form of [`crate::geometry::spawn_ray_to`]: `(origin, dir, tmax)`, bit for bit.
 #[inline(always)]
 pub fn spawn_ray_to(p: V3, p_error: V3, n: V3, q: V3, q_error: V3, n_q: V3) -> (V3, V3, Packet) {
-    let o = offset_ray_origin(p, p_error, n, q.sub(p));
-    let target = offset_ray_origin(q, q_error, n_q, p.sub(q));
-    let d = target.sub(o);
+    let o = offset_ray_origin(p, p_error, n, q.minus(p));
+    let target = offset_ray_origin(q, q_error, n_q, p.minus(q));
+    let d = target.minus(o);
     let cos = n_q.dot(d).abs();
     let eps = Packet::splat(SPAWN_TO_ERROR) * (d.x.abs() + d.y.abs() + d.z.abs()) / cos;
     let one = Packet::splat(1.0);
@@ -95,18 +95,18 @@ pub fn point_light(
     active: u32,
 ) -> ShadowLanes {
     let pos = V3::splat(position);
-    let to_light = pos.sub(s.p);
+    let to_light = pos.minus(s.p);
     let dist2 = to_light.dot(to_light);
-    let wi = to_light.div(dist2.sqrt());
+    let wi = to_light.over(dist2.sqrt());
     let (lit, f) = reflectance(s, hl, wi);
-    let contribution = V3::splat(intensity).div(dist2).mul(f);
+    let contribution = V3::splat(intensity).over(dist2).times(f);
     let (origin, dir, tmax) = spawn_ray_to(
         s.base,
         s.p_error,
         s.ng,
         pos,
         V3::splat(Vec3::ZERO),
-        wi.neg(),
+        wi.negated(),
     );
     ShadowLanes {
         origin,
@@ -133,7 +133,7 @@ pub fn directional_light(
         origin: offset_ray_origin(s.base, s.p_error, s.ng, wi),
         dir: wi,
         tmax: Packet::splat(f32::INFINITY),
-        contribution: V3::splat(irradiance).mul(f),
+        contribution: V3::splat(irradiance).times(f),
         mask: lit.to_bitmask() & active,
     }
 }
@@ -181,18 +181,18 @@ pub fn quad_light(
 ) -> ShadowLanes {
     let zero = Packet::splat(0.0);
     let point = V3::splat(q.corner)
-        .add(V3::splat(q.edge1).scale(u))
-        .add(V3::splat(q.edge2).scale(v));
+        .plus(V3::splat(q.edge1).scale(u))
+        .plus(V3::splat(q.edge2).scale(v));
     let n = V3::splat(q.normal);
-    let to = point.sub(s.p);
+    let to = point.minus(s.p);
     let dist2 = to.dot(to);
     let dist = dist2.sqrt();
-    let wi = to.div(dist);
+    let wi = to.over(dist);
     let cos_l = -wi.dot(n);
     let seen = cos_l.simd_gt(zero) & dist.simd_gt(zero);
     let weight = V3::splat(q.radiance).scale(cos_l * Packet::splat(q.area) / dist2);
     let (lit, f) = reflectance(s, hl, wi);
-    let contribution = weight.mul(f).div(Packet::splat(samples));
+    let contribution = weight.times(f).over(Packet::splat(samples));
     let (origin, dir, tmax) = spawn_ray_to(s.base, s.p_error, s.ng, point, V3::splat(q.p_error), n);
     ShadowLanes {
         origin,
@@ -211,8 +211,8 @@ pub fn quad_light(
 pub fn checker_albedo(c: &Checker, p: V3, p_error: V3, outward: V3) -> (V3, u32) {
     let inset = Packet::splat(2.0) * outward.abs().dot(p_error)
         + Packet::splat(CHECKER_INSET) * p.abs().x.fast_max(p.abs().y.fast_max(p.abs().z));
-    let look = p.sub(outward.scale(inset));
-    let q = look.div(Packet::splat(c.scale));
+    let look = p.minus(outward.scale(inset));
+    let q = look.over(Packet::splat(c.scale));
     let q = V3 {
         x: q.x.floor(),
         y: q.y.floor(),

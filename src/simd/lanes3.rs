@@ -81,7 +81,7 @@ impl V3 {
 
     /// Every component divided by the lane's `s` (glam's `Vec3 / f32`).
     #[inline(always)]
-    pub fn div(self, s: Packet) -> V3 {
+    pub fn over(self, s: Packet) -> V3 {
         V3 {
             x: self.x / s,
             y: self.y / s,
@@ -91,7 +91,7 @@ impl V3 {
 
     /// Component-wise product.
     #[inline(always)]
-    pub fn mul(self, o: V3) -> V3 {
+    pub fn times(self, o: V3) -> V3 {
         V3 {
             x: self.x * o.x,
             y: self.y * o.y,
@@ -100,7 +100,7 @@ impl V3 {
     }
 
     #[inline(always)]
-    pub fn add(self, o: V3) -> V3 {
+    pub fn plus(self, o: V3) -> V3 {
         V3 {
             x: self.x + o.x,
             y: self.y + o.y,
@@ -109,7 +109,7 @@ impl V3 {
     }
 
     #[inline(always)]
-    pub fn sub(self, o: V3) -> V3 {
+    pub fn minus(self, o: V3) -> V3 {
         V3 {
             x: self.x - o.x,
             y: self.y - o.y,
@@ -118,7 +118,7 @@ impl V3 {
     }
 
     #[inline(always)]
-    pub fn neg(self) -> V3 {
+    pub fn negated(self) -> V3 {
         V3 {
             x: -self.x,
             y: -self.y,
@@ -156,8 +156,8 @@ pub fn offset_ray_origin(p: V3, p_error: V3, n: V3, w: V3) -> V3 {
     let d = n.abs().dot(p_error) * Packet::splat(1.0 + gamma(8));
     let offset = n.scale(d);
     let flip = w.dot(n).simd_lt(Packet::splat(0.0));
-    let offset = V3::select(flip, offset.neg(), offset);
-    let po = p.add(offset);
+    let offset = V3::select(flip, offset.negated(), offset);
+    let po = p.plus(offset);
     V3 {
         x: step(po.x, offset.x),
         y: step(po.y, offset.y),
