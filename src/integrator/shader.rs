@@ -121,7 +121,7 @@ impl Shader<'_> {
         // The shading point's random stream, created on first use: most draw nothing.
         let mut stream: Option<PixelRng> = None;
         out.local = m.emission;
-        if m.diffuse != Vec3::ZERO || m.checker.is_some() || m.specular != Vec3::ZERO {
+        if Self::is_lit(m) {
             // The winding normal, not the one facing the ray: a checker surface on a
             // cell boundary shows the same cell from both sides.
             let outward = if si.front_face {
@@ -147,6 +147,47 @@ impl Shader<'_> {
                 drawn,
             );
         }
+        self.emit_children(
+            d,
+            time,
+            si,
+            depth,
+            throughput,
+            pixel,
+            path,
+            &mut stream,
+            out,
+            rays,
+            drawn,
+        );
+    }
+
+    /// Whether a material asks for direct light (and ambient): it has a diffuse,
+    /// checkerboard or specular lobe.
+    pub fn is_lit(m: &crate::scene::Material) -> bool {
+        m.diffuse != Vec3::ZERO || m.checker.is_some() || m.specular != Vec3::ZERO
+    }
+
+    /// The mirror, glossy, glass and translucent child rays of the hit `si`, appended
+    /// to `out.children`: the second half of [`Self::shade_emit`], also called by the
+    /// lane-parallel shading stage after it has done the direct light. `stream` is the
+    /// shading point's random stream as the direct light left it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn emit_children(
+        &self,
+        d: Vec3,
+        time: f32,
+        si: &SurfaceInteraction,
+        depth: u32,
+        throughput: Vec3,
+        pixel: u64,
+        path: u64,
+        stream: &mut Option<PixelRng>,
+        out: &mut Emitted,
+        rays: &mut RayCounts,
+        drawn: &mut EffectSamplesDrawn,
+    ) {
+        let m = &self.scene.materials[si.material as usize];
         if depth >= self.max_depth {
             return;
         }
@@ -188,15 +229,7 @@ impl Shader<'_> {
                 let axis = scatter_dir(reflect(d, si.n_shading), si.n_geometric, || {
                     reflect(d, si.n_geometric)
                 });
-                let n = self.lobe_points(
-                    depth,
-                    SobolDim::Glossy,
-                    &mut stream,
-                    pixel,
-                    path,
-                    out,
-                    drawn,
-                );
+                let n = self.lobe_points(depth, SobolDim::Glossy, stream, pixel, path, out, drawn);
                 let weight = m.glossy / n as f32;
                 for i in 0..n as usize {
                     let (u, v) = out.points[i];
@@ -256,7 +289,7 @@ impl Shader<'_> {
                         let n = self.lobe_points(
                             depth,
                             SobolDim::Translucency,
-                            &mut stream,
+                            stream,
                             pixel,
                             path,
                             out,

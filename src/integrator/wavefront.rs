@@ -38,9 +38,9 @@
 
 use super::camera_packets::CameraStaging;
 use super::camera_rays::{CameraSampler, SamplePlan};
-use super::interaction::SurfaceInteraction;
 use super::pixel_filter::resolve_pixel_into;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
+use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::tiles::{Tile, TileResult, render_tiles};
 use super::{RenderOptions, RenderOutput, shadow};
@@ -57,11 +57,15 @@ use std::time::Instant;
 /// summation order.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
     let pipeline = Pipeline::new(scene, opts);
+    let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment);
     render_tiles(
         scene,
         opts,
         || Workspace::new(&pipeline, scene),
-        |ws, camera, tile| render_tile(scene, accel, opts, &pipeline, camera, ws, tile),
+        |ws, camera, tile| {
+            let stage = (&pipeline, lanes.as_ref());
+            render_tile(scene, accel, opts, stage, camera, ws, tile)
+        },
     )
 }
 
@@ -134,23 +138,6 @@ impl Pipeline {
     }
 }
 
-/// Where shading puts its results.
-struct Sinks {
-    /// Radiance of each camera sample of the batch in flight.
-    acc: Vec<Vec3>,
-    /// Image index of the pixel of each camera sample of the batch in flight.
-    slot_pixel: Vec<u64>,
-    next: PerChildKind<Option<RayQueue>>,
-    /// One shadow queue per light, so that the rays of a packet converge on one light
-    /// (interleaving two lights' rays splits every packet by octant).
-    shadow: Vec<ShadowQueue>,
-    /// Whether each light is an area light (its queue is the area-shadow stage).
-    area: Vec<bool>,
-    emitted: Emitted,
-    rays: RayCounts,
-    drawn: EffectSamplesDrawn,
-}
-
 /// Per-worker queues and scratch, sized by the largest batch seen, reused across tiles.
 struct Workspace {
     /// Staging of the lane-parallel camera rays, the pixels of the chunk being
@@ -170,6 +157,7 @@ struct Workspace {
     hits: Vec<Option<SceneHit>>,
     occluded: Vec<bool>,
     scratch: BatchScratch,
+    shade: ShadeScratch,
 }
 
 impl Workspace {
@@ -204,6 +192,7 @@ impl Workspace {
             hits: Vec::new(),
             occluded: Vec::new(),
             scratch: BatchScratch::default(),
+            shade: ShadeScratch::default(),
         }
     }
 
@@ -229,6 +218,9 @@ const BLOCK: u32 = 4;
 /// What every wave of a tile needs.
 struct WaveContext<'a> {
     shader: Shader<'a>,
+    /// The lane-parallel shading of the scene's common materials and lights
+    /// (`shade_stage`); `None` when a light or the environment needs the scalar shader.
+    lanes: Option<&'a LaneShading>,
     accel: &'a SceneAccel,
     /// Shadow rays through glass (`shadow` module) need the scene to look up materials.
     transmit: Option<(&'a Scene, bool)>,
@@ -240,7 +232,7 @@ fn render_tile(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
-    pipeline: &Pipeline,
+    (pipeline, lanes): (&Pipeline, Option<&LaneShading>),
     camera: &CameraSampler,
     ws: &mut Workspace,
     tile: Tile,
@@ -248,6 +240,7 @@ fn render_tile(
     let plan = camera.plan;
     let cx = WaveContext {
         shader: Shader::new(scene, opts, plan),
+        lanes,
         accel,
         transmit: shadow::transmits(scene, opts.transmitted_shadows)
             .then_some((scene, opts.transmitted_shadows)),
@@ -392,7 +385,15 @@ fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u
     trace_closest(accel, cutouts, &ws.camera, &mut ws.hits, &mut ws.scratch);
     stages.trace += ms_since(t);
     let t = Instant::now();
-    shade_queue(&cx.shader, &ws.camera, &ws.hits, 0, &mut ws.sinks);
+    shade_queue(
+        &cx.shader,
+        cx.lanes,
+        &ws.camera,
+        &ws.hits,
+        0,
+        &mut ws.sinks,
+        &mut ws.shade,
+    );
     stages.shade += ms_since(t);
     let mut peak = ws.live_paths(true);
     trace_shadows(
@@ -427,7 +428,15 @@ fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u
             trace_closest(accel, cutouts, queue, &mut ws.hits, &mut ws.scratch);
             *child_stage(stages, kind).get_or_insert(0.0) += ms_since(t);
             let t = Instant::now();
-            shade_queue(&cx.shader, queue, &ws.hits, depth, &mut ws.sinks);
+            shade_queue(
+                &cx.shader,
+                cx.lanes,
+                queue,
+                &ws.hits,
+                depth,
+                &mut ws.sinks,
+                &mut ws.shade,
+            );
             stages.shade += ms_since(t);
             peak = peak.max(ws.live_paths(false));
             if let Some(queue) = &mut ws.current[kind] {
@@ -472,56 +481,6 @@ fn trace_closest(
             if let Some(h) = *hit {
                 *hit = super::texturing::solid_hit(scene, accel, ray, h).0;
             }
-        }
-    }
-}
-
-/// Shades every ray of `queue` (at wave `depth`) with its hit, emitting into `sinks`.
-fn shade_queue(
-    shader: &Shader,
-    queue: &RayQueue,
-    hits: &[Option<SceneHit>],
-    depth: u32,
-    sinks: &mut Sinks,
-) {
-    let scene = shader.scene;
-    for (i, hit) in hits.iter().enumerate() {
-        let slot = queue.slot[i];
-        let weight = queue.weight[i];
-        let Some(hit) = hit else {
-            sinks.acc[slot as usize] += weight * scene.miss_radiance(queue.rays[i].dir);
-            continue;
-        };
-        let ray = &queue.rays[i];
-        let si = SurfaceInteraction::new(scene, ray, hit);
-        let pixel = sinks.slot_pixel[slot as usize];
-        let out = &mut sinks.emitted;
-        shader.shade_emit(
-            ray.dir.normalize(),
-            ray.time,
-            &si,
-            depth,
-            queue.throughput[i],
-            pixel,
-            queue.path[i],
-            out,
-            &mut sinks.rays,
-            &mut sinks.drawn,
-        );
-        sinks.acc[slot as usize] += weight * out.local;
-        for s in &out.shadow {
-            let q = &mut sinks.shadow[s.light as usize];
-            q.rays.push(s.ray);
-            q.slot.push(slot);
-            q.contribution.push(weight * s.contribution);
-        }
-        for c in &out.children {
-            let q = sinks.next[c.kind].get_or_insert_with(RayQueue::default);
-            debug_assert!(
-                c.kind != ChildKind::Refraction || scene.features.glass,
-                "a refracted ray from a scene without glass"
-            );
-            q.push(c.ray, slot, weight * c.weight, c.throughput, c.path);
         }
     }
 }

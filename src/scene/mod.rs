@@ -29,7 +29,7 @@ pub use environment::{
 };
 pub use instance::{Affine, Instance, InstanceSet, SurfacePoint};
 pub use light::{Light, LightSample};
-pub use material::{Checker, Material};
+pub use material::{CHECKER_INSET, Checker, Material};
 pub use motion::MotionSet;
 pub use plane::Plane;
 

@@ -11,8 +11,11 @@
 
 pub mod camera;
 pub mod compact;
+pub mod direct_light;
 pub mod exact_sums;
 pub mod kernels;
+pub mod lanes3;
+pub mod pow;
 pub mod prefetch;
 pub mod quant;
 

@@ -1,0 +1,627 @@
+//! The wavefront's shading stage ([`shade_queue`]): the hits of a wave are gathered
+//! into a [`HitBatch`] (structure of arrays, grouped by material by a counting sort),
+//! then each material group is shaded 16 hits at a time in lanes where the lane path
+//! covers it ([`LaneShading`]), or hit by hit by the scalar [`Shader::shade_emit`].
+//!
+//! The lane path (`simd::direct_light`): checkerboard albedo, emission and ambient,
+//! and the shadow rays of every point and directional light with lanes over the hits; the shadow rays
+//! of quad lights with lanes over the light samples of one hit; all written straight
+//! into the per-light shadow queues. Child rays (mirror, glass, glossy, translucency)
+//! come from the scalar [`Shader::emit_children`], hit by hit, after the direct light,
+//! so that a shading point draws its random numbers in the scalar order. Lanes repeat
+//! the scalar f32 operations in order: the emitted rays are bit-identical, the
+//! contributions differ only by the lane power function's error (a test checks both).
+//!
+//! Not in lanes (the scalar shader handles them, per material or per scene): image
+//! textures, spot, disk and sphere lights, and the environment.
+
+use super::hit_batch::HitBatch;
+use super::path_keys::HitSet;
+use super::queues::{PerChildKind, RayQueue, ShadowQueue};
+use super::shader::{ChildKind, Emitted, Shader};
+use super::sobol::SobolDim;
+use crate::accel::SceneHit;
+use crate::geometry::Ray;
+use crate::scene::{Light, Scene};
+use crate::simd::Packet;
+use crate::simd::direct_light::{
+    Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light,
+    point_light, quad_light,
+};
+use crate::simd::lanes3::V3;
+use crate::stats::{EffectSamplesDrawn, RayCounts};
+use glam::Vec3;
+
+/// Where shading puts its results.
+pub(crate) struct Sinks {
+    /// Radiance of each camera sample of the batch in flight.
+    pub acc: Vec<Vec3>,
+    /// Image index of the pixel of each camera sample of the batch in flight.
+    pub slot_pixel: Vec<u64>,
+    pub next: PerChildKind<Option<RayQueue>>,
+    /// One shadow queue per light, so that the rays of a packet converge on one light
+    /// (interleaving two lights' rays splits every packet by octant).
+    pub shadow: Vec<ShadowQueue>,
+    /// Whether each light is an area light (its queue is the area-shadow stage).
+    pub area: Vec<bool>,
+    pub emitted: Emitted,
+    pub rays: RayCounts,
+    pub drawn: EffectSamplesDrawn,
+}
+
+/// Scratch of the shading stage, reused across waves.
+#[derive(Default)]
+pub(crate) struct ShadeScratch {
+    pub batch: HitBatch,
+    albedo: Vec<Vec3>,
+    points: Vec<(f32, f32)>,
+}
+
+/// What the lane path of a scene needs: which materials it covers and the lights in
+/// lane form. `None` from [`LaneShading::new`] when a light or the environment is
+/// outside it (then every hit is shaded by the scalar shader).
+pub(crate) struct LaneShading {
+    /// Per material: shaded in lanes (no image texture on the diffuse or specular colour).
+    covered: Vec<bool>,
+    points: Vec<(u32, Vec3, Vec3)>,
+    /// `(light, wi, irradiance)`: `wi` towards the light, as the scalar shader's.
+    directional: Vec<(u32, Vec3, Vec3)>,
+    quads: Vec<(u32, QuadLight)>,
+}
+
+impl LaneShading {
+    pub fn new(scene: &Scene, environment_samples: u32) -> Option<LaneShading> {
+        if scene.environment.is_some() && environment_samples > 0 {
+            return None;
+        }
+        let mut points = Vec::new();
+        let mut directional = Vec::new();
+        let mut quads = Vec::new();
+        for (i, light) in scene.lights.iter().enumerate() {
+            match *light {
+                Light::Point {
+                    position,
+                    intensity,
+                } => points.push((i as u32, position, intensity)),
+                Light::Directional {
+                    direction,
+                    irradiance,
+                } => directional.push((i as u32, -direction.normalize(), irradiance)),
+                Light::Quad {
+                    corner,
+                    edge1,
+                    edge2,
+                    radiance,
+                } => quads.push((i as u32, QuadLight::new(corner, edge1, edge2, radiance))),
+                _ => return None,
+            }
+        }
+        Some(LaneShading {
+            covered: scene
+                .materials
+                .iter()
+                .map(|m| m.textures.diffuse.is_none() && m.textures.specular.is_none())
+                .collect(),
+            points,
+            directional,
+            quads,
+        })
+    }
+}
+
+/// Shades every ray of `queue` (at wave `depth`) with its hit, emitting into `sinks`:
+/// misses add the background, hits are batched by material and shaded in lanes where
+/// `lanes` covers their material, else by the scalar shader.
+pub(crate) fn shade_queue(
+    shader: &Shader,
+    lanes: Option<&LaneShading>,
+    queue: &RayQueue,
+    hits: &[Option<SceneHit>],
+    depth: u32,
+    sinks: &mut Sinks,
+    scratch: &mut ShadeScratch,
+) {
+    let scene = shader.scene;
+    for (i, hit) in hits.iter().enumerate() {
+        if hit.is_none() {
+            let slot = queue.slot[i] as usize;
+            sinks.acc[slot] += queue.weight[i] * scene.miss_radiance(queue.rays[i].dir);
+        }
+    }
+    scratch.batch.build(scene, &queue.rays, hits);
+    let groups = std::mem::take(&mut scratch.batch.groups);
+    for (material, range) in &groups {
+        match lanes {
+            Some(l) if l.covered[*material as usize] => {
+                shade_group_lanes(
+                    shader,
+                    l,
+                    *material,
+                    range.clone(),
+                    queue,
+                    depth,
+                    sinks,
+                    scratch,
+                );
+            }
+            _ => {
+                for k in range.clone() {
+                    shade_scalar(shader, &scratch.batch, *material, k, queue, depth, sinks);
+                }
+            }
+        }
+    }
+    scratch.batch.groups = groups;
+}
+
+/// Hit `k` of the batch through the scalar shader.
+fn shade_scalar(
+    shader: &Shader,
+    batch: &HitBatch,
+    material: u32,
+    k: usize,
+    queue: &RayQueue,
+    depth: u32,
+    sinks: &mut Sinks,
+) {
+    let i = batch.ray[k] as usize;
+    let si = batch.interaction(k, material);
+    let slot = queue.slot[i];
+    let weight = queue.weight[i];
+    let pixel = sinks.slot_pixel[slot as usize];
+    let out = &mut sinks.emitted;
+    shader.shade_emit(
+        batch.dir.get(k),
+        queue.rays[i].time,
+        &si,
+        depth,
+        queue.throughput[i],
+        pixel,
+        queue.path[i],
+        out,
+        &mut sinks.rays,
+        &mut sinks.drawn,
+    );
+    sinks.acc[slot as usize] += weight * out.local;
+    for s in &out.shadow {
+        let q = &mut sinks.shadow[s.light as usize];
+        q.rays.push(s.ray);
+        q.slot.push(slot);
+        q.contribution.push(weight * s.contribution);
+    }
+    push_children(&mut sinks.next, &sinks.emitted, slot, weight);
+}
+
+/// The child rays of one shading point into the next wave's queues.
+fn push_children(
+    next: &mut PerChildKind<Option<RayQueue>>,
+    out: &Emitted,
+    slot: u32,
+    weight: Vec3,
+) {
+    for c in &out.children {
+        let q = next[c.kind].get_or_insert_with(RayQueue::default);
+        q.push(c.ray, slot, weight * c.weight, c.throughput, c.path);
+    }
+}
+
+/// The shadow rays of the set lanes of `s` into `q`; lane `i` belongs to the camera
+/// sample `slot(i)`, is scaled by `weight(i)` and keeps the time `time(i)`.
+fn push_shadow(
+    q: &mut ShadowQueue,
+    s: &ShadowLanes,
+    lane: impl Fn(usize) -> (u32, Vec3, f32),
+    rays: &mut RayCounts,
+) {
+    let mut bits = s.mask;
+    if bits == 0 {
+        return;
+    }
+    let arr = |v: &V3| (v.x.to_array(), v.y.to_array(), v.z.to_array());
+    let (ox, oy, oz) = arr(&s.origin);
+    let (dx, dy, dz) = arr(&s.dir);
+    let (cx, cy, cz) = arr(&s.contribution);
+    let tmax = s.tmax.to_array();
+    rays.shadow += bits.count_ones() as u64;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let (slot, weight, time) = lane(i);
+        let mut ray = Ray::segment(
+            Vec3::new(ox[i], oy[i], oz[i]),
+            Vec3::new(dx[i], dy[i], dz[i]),
+            0.0,
+            tmax[i],
+        );
+        ray.time = time;
+        q.rays.push(ray);
+        q.slot.push(slot);
+        q.contribution.push(weight * Vec3::new(cx[i], cy[i], cz[i]));
+    }
+}
+
+/// One material group in lanes: local light and point lights 16 hits at a time, then
+/// per hit the quad lights (lanes over samples) and the child rays.
+#[allow(clippy::too_many_arguments)]
+fn shade_group_lanes(
+    shader: &Shader,
+    lanes: &LaneShading,
+    material: u32,
+    range: std::ops::Range<usize>,
+    queue: &RayQueue,
+    depth: u32,
+    sinks: &mut Sinks,
+    scratch: &mut ShadeScratch,
+) {
+    let scene = shader.scene;
+    let m = &scene.materials[material as usize];
+    let lit = Shader::is_lit(m);
+    let hl = Highlight {
+        specular: m.specular,
+        shininess: m.shininess,
+    };
+    let batch = &scratch.batch;
+    let albedo = &mut scratch.albedo;
+    albedo.clear();
+    let mut j = range.start;
+    while j < range.end {
+        let n = (range.end - j).min(16);
+        let active = if n == 16 { 0xffff } else { (1u32 << n) - 1 };
+        let ng = batch.ng.lanes(j);
+        let mut s = SurfaceLanes {
+            p: batch.p.lanes(j),
+            p_error: batch.p_error.lanes(j),
+            ng,
+            ns: batch.ns.lanes(j),
+            base: batch.base.lanes(j),
+            smooth: Packet::new(batch.smooth[j..j + 16].try_into().expect("16 lanes")),
+            wo: batch.dir.lanes(j).negated(),
+            albedo: V3::splat(m.diffuse),
+        };
+        if lit && let Some(c) = &m.checker {
+            // The winding normal, as the scalar shader's checker lookup.
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
+            let outward = V3::select(front, ng, ng.negated());
+            let (a, mut redo) = checker_albedo(c, s.p, s.p_error, outward);
+            s.albedo = a;
+            redo &= active;
+            if redo != 0 {
+                // Cell indices past 2^24: the scalar lookup, lane by lane.
+                let mut xyz = (a.x.to_array(), a.y.to_array(), a.z.to_array());
+                while redo != 0 {
+                    let i = redo.trailing_zeros() as usize;
+                    redo &= redo - 1;
+                    let o = outward.lane(i);
+                    let v = m.albedo_on_surface(s.p.lane(i), s.p_error.lane(i), o);
+                    (xyz.0[i], xyz.1[i], xyz.2[i]) = (v.x, v.y, v.z);
+                }
+                s.albedo = V3 {
+                    x: Packet::new(xyz.0),
+                    y: Packet::new(xyz.1),
+                    z: Packet::new(xyz.2),
+                };
+            }
+        }
+        for i in 0..n {
+            let q = batch.ray[j + i] as usize;
+            let a = s.albedo.lane(i);
+            albedo.push(a);
+            let local = if lit {
+                m.emission + scene.ambient * a
+            } else {
+                m.emission
+            };
+            sinks.acc[queue.slot[q] as usize] += queue.weight[q] * local;
+        }
+        if lit {
+            let lane = |i: usize| {
+                let q = batch.ray[j + i] as usize;
+                (queue.slot[q], queue.weight[q], queue.rays[q].time)
+            };
+            for &(index, position, intensity) in &lanes.points {
+                let sl = point_light(&s, &hl, position, intensity, active);
+                push_shadow(
+                    &mut sinks.shadow[index as usize],
+                    &sl,
+                    lane,
+                    &mut sinks.rays,
+                );
+            }
+            for &(index, wi, irradiance) in &lanes.directional {
+                let sl = directional_light(&s, &hl, wi, irradiance, active);
+                push_shadow(
+                    &mut sinks.shadow[index as usize],
+                    &sl,
+                    lane,
+                    &mut sinks.rays,
+                );
+            }
+        }
+        j += 16;
+    }
+
+    let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
+    let plan = &shader.plan;
+    for k in range.clone() {
+        let q = batch.ray[k] as usize;
+        let slot = queue.slot[q];
+        let weight = queue.weight[q];
+        let time = queue.rays[q].time;
+        let pixel = sinks.slot_pixel[slot as usize];
+        let path = queue.path[q];
+        let mut stream = None;
+        if lit && !lanes.quads.is_empty() {
+            let splat = |a: &super::hit_batch::Soa3| V3::splat(a.get(k));
+            let s = SurfaceLanes {
+                p: splat(&batch.p),
+                p_error: splat(&batch.p_error),
+                ng: splat(&batch.ng),
+                ns: splat(&batch.ns),
+                base: splat(&batch.base),
+                smooth: Packet::splat(batch.smooth[k]),
+                wo: splat(&batch.dir).negated(),
+                albedo: V3::splat(albedo[k - range.start]),
+            };
+            let samples = plan.shadow;
+            for (index, quad) in &lanes.quads {
+                super::path_keys::hit_points(
+                    plan.sampler,
+                    HitSet {
+                        seed: shader.seed,
+                        pixel,
+                        path,
+                        depth,
+                        dim: SobolDim::Light(*index),
+                    },
+                    samples,
+                    &mut stream,
+                    &mut scratch.points,
+                );
+                sinks.drawn.light += samples as u64;
+                for chunk in scratch.points.chunks(16) {
+                    let mut u = [0.0f32; 16];
+                    let mut v = [0.0f32; 16];
+                    for (i, &(a, b)) in chunk.iter().enumerate() {
+                        (u[i], v[i]) = (a, b);
+                    }
+                    let active = if chunk.len() == 16 {
+                        0xffff
+                    } else {
+                        (1u32 << chunk.len()) - 1
+                    };
+                    let sl = quad_light(
+                        &s,
+                        &hl,
+                        quad,
+                        Packet::new(u),
+                        Packet::new(v),
+                        samples as f32,
+                        active,
+                    );
+                    push_shadow(
+                        &mut sinks.shadow[*index as usize],
+                        &sl,
+                        |_| (slot, weight, time),
+                        &mut sinks.rays,
+                    );
+                }
+            }
+        }
+        if spawns && depth < shader.max_depth {
+            let si = batch.interaction(k, material);
+            let out = &mut sinks.emitted;
+            out.children.clear();
+            shader.emit_children(
+                batch.dir.get(k),
+                time,
+                &si,
+                depth,
+                queue.throughput[q],
+                pixel,
+                path,
+                &mut stream,
+                out,
+                &mut sinks.rays,
+                &mut sinks.drawn,
+            );
+            debug_assert!(
+                out.children.iter().all(|c| c.kind != ChildKind::Refraction)
+                    || scene.features.glass,
+                "a refracted ray from a scene without glass"
+            );
+            push_children(&mut sinks.next, &sinks.emitted, slot, weight);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{AccelKind, SceneAccel};
+    use crate::integrator::RenderOptions;
+    use crate::integrator::camera_rays::SamplePlan;
+    use crate::scene::load::load_scene;
+    use crate::simd::pow::{POW_REL_ERROR, POW_TINY};
+
+    /// How far a lane contribution may be from the scalar one, relative. The lanes
+    /// repeat every scalar f32 operation in order, except the Blinn-Phong power: the
+    /// lane `pow` is within `POW_REL_ERROR` of the exact power and libm's `powf` within
+    /// 1 ulp (2u, u = 2^-24), so the two powers differ by at most `POW_REL_ERROR + 2u`
+    /// relative. The power then passes through `ks · P` (non-negative, added to the
+    /// non-negative Lambert term, so its relative change bounds the sum's) and three
+    /// products and one sum whose roundings may go either way on the two sides: 2u
+    /// each, 8u. Total `POW_REL_ERROR + 10u`.
+    const REL: f32 = POW_REL_ERROR + 10.0 * f32::EPSILON / 2.0;
+    /// Below `POW_TINY` the power's error is absolute; scaled by the largest factor a
+    /// shipped scene puts on it (intensity / distance² · ks · weight < 1e6).
+    const ABS: f32 = POW_TINY * 1e6;
+
+    fn sinks(scene: &Scene, slots: usize) -> Sinks {
+        Sinks {
+            acc: vec![Vec3::ZERO; slots],
+            slot_pixel: (0..slots as u64).collect(),
+            next: PerChildKind::default(),
+            shadow: (0..scene.lights.len() + scene.environment.is_some() as usize)
+                .map(|_| ShadowQueue::default())
+                .collect(),
+            area: Vec::new(),
+            emitted: Emitted::default(),
+            rays: RayCounts::default(),
+            drawn: EffectSamplesDrawn::default(),
+        }
+    }
+
+    fn bits(v: Vec3) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    fn ray_bits(r: &Ray) -> [u32; 9] {
+        let [a, b, c] = bits(r.origin);
+        let [d, e, f] = bits(r.dir);
+        [
+            a,
+            b,
+            c,
+            d,
+            e,
+            f,
+            r.tmin.to_bits(),
+            r.tmax.to_bits(),
+            r.time.to_bits(),
+        ]
+    }
+
+    /// Compares what the lane path and the scalar path emitted; returns the number of
+    /// shadow rays compared and how many of their contributions were not bit-equal.
+    fn compare(name: &str, lane: &Sinks, scalar: &Sinks) -> (usize, usize) {
+        assert_eq!(lane.rays, scalar.rays, "{name}: ray counts");
+        assert_eq!(lane.drawn, scalar.drawn, "{name}: samples drawn");
+        // Emission and ambient: the same operations, bit for bit.
+        for (slot, (a, b)) in lane.acc.iter().zip(&scalar.acc).enumerate() {
+            assert_eq!(
+                bits(*a),
+                bits(*b),
+                "{name}: local radiance of sample {slot}"
+            );
+        }
+        let (mut compared, mut inexact) = (0, 0);
+        for (light, (a, b)) in lane.shadow.iter().zip(&scalar.shadow).enumerate() {
+            assert_eq!(a.rays.len(), b.rays.len(), "{name}: light {light}");
+            assert_eq!(a.slot, b.slot, "{name}: light {light}");
+            for i in 0..a.rays.len() {
+                assert_eq!(
+                    ray_bits(&a.rays[i]),
+                    ray_bits(&b.rays[i]),
+                    "{name}: light {light} shadow ray {i}: {:?} against {:?}",
+                    a.rays[i],
+                    b.rays[i]
+                );
+                let (ca, cb) = (a.contribution[i], b.contribution[i]);
+                for c in 0..3 {
+                    let tol = REL * ca[c].abs().max(cb[c].abs()) + ABS;
+                    assert!(
+                        (ca[c] - cb[c]).abs() <= tol,
+                        "{name}: light {light} ray {i}: lanes {ca} scalar {cb}"
+                    );
+                }
+                inexact += (bits(ca) != bits(cb)) as usize;
+            }
+            compared += a.rays.len();
+        }
+        for (kind, a) in lane.next.iter() {
+            let b = &scalar.next[kind];
+            let (a, b) = (a.as_ref(), b.as_ref());
+            assert_eq!(a.is_some(), b.is_some(), "{name}: {kind:?} queue");
+            if let (Some(a), Some(b)) = (a, b) {
+                let ab: Vec<_> = a.rays.iter().map(ray_bits).collect();
+                let bb: Vec<_> = b.rays.iter().map(ray_bits).collect();
+                assert_eq!(ab, bb, "{name}: {kind:?} rays");
+                assert_eq!(a.slot, b.slot);
+                assert_eq!(a.weight, b.weight);
+                assert_eq!(a.throughput, b.throughput);
+                assert_eq!(a.path, b.path);
+            }
+        }
+        (compared, inexact)
+    }
+
+    /// The lane path and the scalar shader shade the same hits (camera rays of every
+    /// shipped scene the lane path covers, then two waves of their child rays) into the
+    /// same queues: the same shadow and child rays bit for bit, the same local radiance
+    /// bit for bit, the same counts, and shadow contributions within `REL` (the lane
+    /// power function; see there).
+    #[test]
+    fn lane_shading_matches_the_scalar_shader_on_the_same_hits() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let mut paths: Vec<_> = std::fs::read_dir(&dir)
+            .expect("scenes/")
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        paths.sort();
+        let (mut scenes, mut shadow_rays, mut inexact, mut quad, mut smooth) = (0, 0, 0, 0, 0);
+        for path in paths {
+            let name = path.display().to_string();
+            let scene = load_scene(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let mut opts = RenderOptions::from_scene(&scene);
+            opts.samples.shadow = opts.samples.shadow.min(20);
+            opts.samples.glossy = opts.samples.glossy.min(3);
+            let plan = SamplePlan::new(&scene, &opts);
+            let Some(lanes) = LaneShading::new(&scene, plan.environment) else {
+                eprintln!("{name}: a light or the environment is outside the lane path, skipped");
+                continue;
+            };
+            scenes += 1;
+            quad += lanes.quads.len();
+            let shader = Shader::new(&scene, &opts, plan);
+            let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+            let (w, h) = (48, 36);
+            let frame = scene.camera.frame(w, h);
+            let mut queue = RayQueue::default();
+            for i in 0..w * h {
+                let ray = frame.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                queue.push(ray, i, Vec3::ONE, Vec3::ONE, plan.first_path());
+            }
+            let slots = (w * h) as usize;
+            let mut scratch = ShadeScratch::default();
+            let mut queues = vec![(queue, 0)];
+            while let Some((queue, depth)) = queues.pop() {
+                let hits: Vec<_> = queue.rays.iter().map(|r| accel.closest_hit(r)).collect();
+                let mut a = sinks(&scene, slots);
+                let mut b = sinks(&scene, slots);
+                shade_queue(
+                    &shader,
+                    Some(&lanes),
+                    &queue,
+                    &hits,
+                    depth,
+                    &mut a,
+                    &mut scratch,
+                );
+                smooth += scratch.batch.smooth[..scratch.batch.len()]
+                    .iter()
+                    .filter(|m| m.to_bits() != 0)
+                    .count();
+                shade_queue(&shader, None, &queue, &hits, depth, &mut b, &mut scratch);
+                let (n, x) = compare(&format!("{name} depth {depth}"), &a, &b);
+                shadow_rays += n;
+                inexact += x;
+                if depth < 2 {
+                    for kind in ChildKind::ALL {
+                        if let Some(q) = a.next[kind].take() {
+                            queues.push((q, depth + 1));
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "lane shading: {scenes} scenes, {shadow_rays} shadow rays, {inexact} contributions \
+             not bit-equal (the power), {smooth} smooth-mesh hits"
+        );
+        assert!(scenes >= 6, "{scenes} shipped scenes in the lane path");
+        assert!(quad > 0, "a quad light was compared");
+        assert!(smooth > 0, "a smooth-mesh hit was compared");
+        assert!(shadow_rays > 10_000, "{shadow_rays} shadow rays compared");
+    }
+}

@@ -1,0 +1,230 @@
+//! Direct light over the lanes of a [`Packet`]: the Lambert plus Blinn-Phong
+//! reflectance of `integrator::shader` ([`reflectance`]), the solid checkerboard
+//! ([`checker_albedo`]), and the shadow rays towards a point light (lanes over shading
+//! points, [`point_light`]; a directional light, [`directional_light`]) and towards points on a quad light (lanes over the light
+//! samples of one shading point, [`quad_light`]), each with its unoccluded contribution.
+//!
+//! Every formula repeats the scalar one's f32 operations in the same order, so each
+//! lane computes bit for bit what the scalar shader computes, except the Blinn-Phong
+//! power: [`pow`](super::pow::pow) is within [`POW_REL_ERROR`](super::pow::POW_REL_ERROR)
+//! of libm's `powf`. Shadow-ray geometry (origin, direction, extent) does not depend on
+//! the power and is bit-identical, so both paths trace the same shadow rays.
+
+use super::Packet;
+use super::lanes3::{V3, offset_ray_origin};
+use super::pow::pow;
+use crate::geometry::{SPAWN_TO_ERROR, gamma};
+use crate::scene::{CHECKER_INSET, Checker};
+use glam::Vec3;
+use std::f32::consts::FRAC_1_PI;
+
+/// The shading points of up to 16 hits (or one hit splatted over 16 light samples).
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceLanes {
+    pub p: V3,
+    pub p_error: V3,
+    /// Geometric and shading normals, facing the incident ray.
+    pub ng: V3,
+    pub ns: V3,
+    /// Base point of shadow rays (the lifted point on smooth meshes, else `p`).
+    pub base: V3,
+    /// Mask: the hit is on a smooth-shaded mesh (a light below the facet still counts).
+    pub smooth: Packet,
+    /// Towards the viewer (`-d`, `d` the unit ray direction).
+    pub wo: V3,
+    pub albedo: V3,
+}
+
+/// The per-material part of the reflectance.
+#[derive(Clone, Copy, Debug)]
+pub struct Highlight {
+    pub specular: Vec3,
+    pub shininess: f32,
+}
+
+/// `(mask, f)`: where `mask` is set, the light from `wi` is reflected with `f` (Lambert
+/// `albedo / π · cosθ` plus Blinn-Phong `ks (n·h)^shininess`), as the scalar
+/// shader's `reflectance` closure; where it is clear, that closure returns `None`.
+#[inline(always)]
+pub fn reflectance(s: &SurfaceLanes, hl: &Highlight, wi: V3) -> (Packet, V3) {
+    let zero = Packet::splat(0.0);
+    let cos_s = wi.dot(s.ns);
+    let mask = cos_s.simd_gt(zero) & (s.smooth | wi.dot(s.ng).simd_gt(zero));
+    let mut f = s.albedo.scale(Packet::splat(FRAC_1_PI) * cos_s);
+    if hl.specular != Vec3::ZERO {
+        let h = wi.plus(s.wo).normalize_or_zero();
+        // f32::max(x, 0) returns 0 for a NaN x; maxps(x, 0) returns its second operand then.
+        let cos_h = h.dot(s.ns).fast_max(zero);
+        let p = pow(cos_h, Packet::splat(hl.shininess));
+        f = f.plus(V3::splat(hl.specular).scale(p));
+    }
+    (mask, f)
+}
+
+/// Shadow rays of up to 16 lanes: `Ray::segment(origin, dir, 0, tmax)` and what the
+/// light adds where unblocked, for the lanes whose bit is set in `mask`.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowLanes {
+    pub origin: V3,
+    pub dir: V3,
+    pub tmax: Packet,
+    pub contribution: V3,
+    pub mask: u32,
+}
+
+/// Lane form of [`crate::geometry::spawn_ray_to`]: `(origin, dir, tmax)`, bit for bit.
+#[inline(always)]
+pub fn spawn_ray_to(p: V3, p_error: V3, n: V3, q: V3, q_error: V3, n_q: V3) -> (V3, V3, Packet) {
+    let o = offset_ray_origin(p, p_error, n, q.minus(p));
+    let target = offset_ray_origin(q, q_error, n_q, p.minus(q));
+    let d = target.minus(o);
+    let cos = n_q.dot(d).abs();
+    let eps = Packet::splat(SPAWN_TO_ERROR) * (d.x.abs() + d.y.abs() + d.z.abs()) / cos;
+    let one = Packet::splat(1.0);
+    let tmax = eps.simd_lt(one).select(one - eps, Packet::splat(0.0));
+    (o, d, tmax)
+}
+
+/// Shadow rays from the shading points `s` (lanes in `active`) to a point light.
+#[inline(always)]
+pub fn point_light(
+    s: &SurfaceLanes,
+    hl: &Highlight,
+    position: Vec3,
+    intensity: Vec3,
+    active: u32,
+) -> ShadowLanes {
+    let pos = V3::splat(position);
+    let to_light = pos.minus(s.p);
+    let dist2 = to_light.dot(to_light);
+    let wi = to_light.over(dist2.sqrt());
+    let (lit, f) = reflectance(s, hl, wi);
+    let contribution = V3::splat(intensity).over(dist2).times(f);
+    let (origin, dir, tmax) = spawn_ray_to(
+        s.base,
+        s.p_error,
+        s.ng,
+        pos,
+        V3::splat(Vec3::ZERO),
+        wi.negated(),
+    );
+    ShadowLanes {
+        origin,
+        dir,
+        tmax,
+        contribution,
+        mask: lit.to_bitmask() & active,
+    }
+}
+
+/// Shadow rays from the shading points `s` (lanes in `active`) along the unit
+/// direction `wi` towards a directional light (`Ray::new`: unbounded).
+#[inline(always)]
+pub fn directional_light(
+    s: &SurfaceLanes,
+    hl: &Highlight,
+    wi: Vec3,
+    irradiance: Vec3,
+    active: u32,
+) -> ShadowLanes {
+    let wi = V3::splat(wi);
+    let (lit, f) = reflectance(s, hl, wi);
+    ShadowLanes {
+        origin: offset_ray_origin(s.base, s.p_error, s.ng, wi),
+        dir: wi,
+        tmax: Packet::splat(f32::INFINITY),
+        contribution: V3::splat(irradiance).times(f),
+        mask: lit.to_bitmask() & active,
+    }
+}
+
+/// A quad light's constants, computed as `Light::sample` computes them.
+#[derive(Clone, Copy, Debug)]
+pub struct QuadLight {
+    pub corner: Vec3,
+    pub edge1: Vec3,
+    pub edge2: Vec3,
+    pub radiance: Vec3,
+    pub normal: Vec3,
+    pub area: f32,
+    pub p_error: Vec3,
+}
+
+impl QuadLight {
+    pub fn new(corner: Vec3, edge1: Vec3, edge2: Vec3, radiance: Vec3) -> QuadLight {
+        let c = edge1.cross(edge2);
+        let area = c.length();
+        QuadLight {
+            corner,
+            edge1,
+            edge2,
+            radiance,
+            normal: c / area,
+            area,
+            p_error: gamma(32) * (corner.abs() + edge1.abs() + edge2.abs()),
+        }
+    }
+}
+
+/// Shadow rays from one shading point (splatted over the lanes of `s`) to the points
+/// `(u, v)` of a quad light, lanes in `active`, each contribution divided by
+/// `samples` (the light's sample count), as the scalar area-light loop.
+#[inline(always)]
+pub fn quad_light(
+    s: &SurfaceLanes,
+    hl: &Highlight,
+    q: &QuadLight,
+    u: Packet,
+    v: Packet,
+    samples: f32,
+    active: u32,
+) -> ShadowLanes {
+    let zero = Packet::splat(0.0);
+    let point = V3::splat(q.corner)
+        .plus(V3::splat(q.edge1).scale(u))
+        .plus(V3::splat(q.edge2).scale(v));
+    let n = V3::splat(q.normal);
+    let to = point.minus(s.p);
+    let dist2 = to.dot(to);
+    let dist = dist2.sqrt();
+    let wi = to.over(dist);
+    let cos_l = -wi.dot(n);
+    let seen = cos_l.simd_gt(zero) & dist.simd_gt(zero);
+    let weight = V3::splat(q.radiance).scale(cos_l * Packet::splat(q.area) / dist2);
+    let (lit, f) = reflectance(s, hl, wi);
+    let contribution = weight.times(f).over(Packet::splat(samples));
+    let (origin, dir, tmax) = spawn_ray_to(s.base, s.p_error, s.ng, point, V3::splat(q.p_error), n);
+    ShadowLanes {
+        origin,
+        dir,
+        tmax,
+        contribution,
+        mask: (seen & lit).to_bitmask() & active,
+    }
+}
+
+/// The checkerboard albedo of `Material::albedo_on_surface` per lane, for a surface
+/// with outward normal `outward`. Lanes whose cell index is not an exactly represented
+/// integer below 2^24 (the parity in f32 would differ from the scalar `as i64`
+/// parity) are returned in the second value, a bitmask, for the scalar code to redo.
+#[inline(always)]
+pub fn checker_albedo(c: &Checker, p: V3, p_error: V3, outward: V3) -> (V3, u32) {
+    let inset = Packet::splat(2.0) * outward.abs().dot(p_error)
+        + Packet::splat(CHECKER_INSET) * p.abs().x.fast_max(p.abs().y.fast_max(p.abs().z));
+    let look = p.minus(outward.scale(inset));
+    let q = look.over(Packet::splat(c.scale));
+    let q = V3 {
+        x: q.x.floor(),
+        y: q.y.floor(),
+        z: q.z.floor(),
+    };
+    let half = Packet::splat(0.5);
+    let two = Packet::splat(2.0);
+    let parity = |x: Packet| x - two * (x * half).floor();
+    let sum = parity(q.x) + parity(q.y) + parity(q.z);
+    let odd = parity(sum).simd_eq(Packet::splat(1.0));
+    let limit = Packet::splat(16_777_216.0);
+    let exact = q.x.abs().simd_lt(limit) & q.y.abs().simd_lt(limit) & q.z.abs().simd_lt(limit);
+    let albedo = V3::select(odd, V3::splat(c.color_b), V3::splat(c.color_a));
+    (albedo, !exact.to_bitmask() & 0xffff)
+}
