@@ -11,8 +11,10 @@
 //!    renderer's [`CameraSampler::pixel_samples`]), pixels in 4×4 blocks so that 16
 //!    consecutive rays form a coherent packet;
 //! 2. **trace**: their closest hits, in batches ([`SceneAccel::closest_hit_batch`]);
-//! 3. **shade**: each hit through [`Shader::shade_emit`], the local shading shared with
-//!    the recursive renderer: the local radiance goes into the accumulator of the
+//! 3. **shade**: the hits grouped by material ([`shade_queue`]): in lanes where the
+//!    lane path covers the material and lights, else through [`Shader::shade_emit`],
+//!    the local shading shared with the recursive renderer (the same rays either
+//!    way): the local radiance goes into the accumulator of the
 //!    camera sample, shadow rays into the point/directional or the area-light shadow
 //!    queue with their unoccluded contribution, child rays into the reflection,
 //!    refraction, glossy or translucency queue with their weight;
