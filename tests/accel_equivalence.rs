@@ -166,7 +166,10 @@ fn counting_entry_points() {
         let accel = kind.build(prims.clone());
         let Some(_) = accel.traversal_counts(&rays[0]) else {
             assert!(
-                matches!(kind, AccelKind::Bvh4 | AccelKind::Bvh8),
+                matches!(
+                    kind,
+                    AccelKind::Bvh4 | AccelKind::Bvh8 | AccelKind::Bvh4c | AccelKind::Bvh8c
+                ),
                 "{kind} has no counting twin"
             );
             continue;
