@@ -272,6 +272,8 @@ fn accel_compare_prints_one_json_row_per_structure_with_equal_checksums() {
             "bvh2",
             "bvh4",
             "bvh8",
+            "bvh4c",
+            "bvh8c",
             "grid",
             "grid-nomailbox",
             "octree",
