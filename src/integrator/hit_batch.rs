@@ -80,6 +80,18 @@ pub(crate) struct HitBatch {
 const MASK_SET: f32 = f32::from_bits(u32::MAX);
 
 impl HitBatch {
+    /// The batch's `Vec3` columns, for what is done to each alike.
+    fn vec3_columns(&mut self) -> [&mut Soa3; 6] {
+        [
+            &mut self.p,
+            &mut self.p_error,
+            &mut self.ng,
+            &mut self.ns,
+            &mut self.base,
+            &mut self.dir,
+        ]
+    }
+
     /// Hits in the batch.
     #[cfg(test)]
     pub fn len(&self) -> usize {
@@ -119,14 +131,7 @@ impl HitBatch {
                 *at += 1;
             }
         }
-        for a in [
-            &mut self.p,
-            &mut self.p_error,
-            &mut self.ng,
-            &mut self.ns,
-            &mut self.base,
-            &mut self.dir,
-        ] {
+        for a in self.vec3_columns() {
             a.clear();
         }
         self.smooth.clear();
@@ -150,14 +155,7 @@ impl HitBatch {
             self.dir.push(ray.dir.normalize());
         }
         // Padding for the last lane load.
-        for a in [
-            &mut self.p,
-            &mut self.p_error,
-            &mut self.ng,
-            &mut self.ns,
-            &mut self.base,
-            &mut self.dir,
-        ] {
+        for a in self.vec3_columns() {
             for _ in 0..LANES {
                 a.push(Vec3::ZERO);
             }
