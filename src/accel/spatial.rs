@@ -54,7 +54,7 @@ const PRIMITIVE_MARGIN_UNITS: f32 = 64.0;
 /// `1e-5 extent + 1e-6 magnitude` of the *scene*, which inside a huge sparse enclosure
 /// swallowed a whole small mesh. A 20k-triangle mesh of radius 1 inside a box of half
 /// size 5e4 took 20034 (octree) and 33978 (kd-tree) primitive tests per ray against
-/// 7.2 and 4.7 for the mesh alone; now 24 and 23 (tests/hostile_scenes.rs). What this
+/// 7.2 and 4.7 for the mesh alone; now 24 and 23 (tests/suite/hostile_scenes.rs). What this
 /// margin does not bound is the traversal's rounding of plane distances, a few units of
 /// the distance from the ray origin: the traversals bound that themselves
 /// ([`PLANE_DISTANCE_ERROR`], the grid's f64 walk); see docs/robustness.md, "Assignment

@@ -169,7 +169,7 @@ pub struct AdaptiveOutput {
 
 /// A pass runs only if its predicted seconds times this end before the time limit:
 /// on a machine shared with other work a pass can take longer than the last one's
-/// rate predicts. A chosen margin: with 1.1 the 2.5 s CLI test (`tests/adaptive.rs`)
+/// rate predicts. A chosen margin: with 1.1 the 2.5 s CLI test (`tests/suite/adaptive.rs`)
 /// failed once in a few runs on the loaded 2-core machine; with 1.5 it passed 4 of 4.
 const SAFETY: f64 = 1.5;
 

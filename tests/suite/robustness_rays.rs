@@ -2,8 +2,8 @@
 //! directions), exact interval ends, degenerate and duplicated geometry, and the optics
 //! helpers of the Whitted integrator at their limits. Every structure, every path.
 
-mod common;
-mod robust;
+use crate::common;
+use crate::robust;
 
 use glam::Vec3;
 use packet_render::accel::{Accel, AccelKind, BruteForce, Spheres, Triangles};

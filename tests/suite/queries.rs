@@ -4,7 +4,7 @@
 //! culling on a closed mesh from outside and inside, and filters that skip candidates
 //! agree with brute force.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::Vec3;

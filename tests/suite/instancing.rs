@@ -278,7 +278,7 @@ fn rays_leaving_instanced_surfaces_never_rehit_them() {
     // A closed convex cube under large translations (up to 1e4 times its size) and
     // scales: a ray leaving a hit outwards must hit nothing, a ray leaving inwards must
     // reach another face. Precondition for the inward rays (as in
-    // tests/robustness_watertight.rs): the hit lies more than 8 offset distances from
+    // tests/suite/robustness_watertight.rs): the hit lies more than 8 offset distances from
     // the face's edges, all of them sharp (90°); closer, f32 cannot place an origin
     // inside the wedge and the ray leaves through the neighbouring face. At scale 1e-3
     // and offset 1e4 the cube is about one f32 ulp wide and no inward origin exists:

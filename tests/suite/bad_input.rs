@@ -1,4 +1,4 @@
-//! Bad input that never hurts, beyond what `tests/load.rs` and `tests/cli.rs` cover:
+//! Bad input that never hurts, beyond what `tests/suite/load.rs` and `tests/suite/cli.rs` cover:
 //! unreadable paths, values that overflow to infinity, inputs found by fuzzing. Each
 //! must exit non-zero with a message naming the file (and line where there is one),
 //! and write nothing: no image and no temporary file.

@@ -2,7 +2,7 @@
 //! +-1e38, a small dense mesh inside a huge sparse enclosure ("teapot in a stadium").
 //! Work is asserted through traversal counts, never through time.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::Vec3;

@@ -3,7 +3,7 @@
 //! (`prefers_stream`); their answers must equal the per-ray queries, hit for hit, also
 //! where a later primitive kind (spheres) is searched in front of the triangles' hits.
 
-mod common;
+use crate::common;
 
 use common::*;
 use glam::Vec3;

@@ -4,8 +4,8 @@
 //! rounded quotient, and edge functions whose sign f32 cannot certify are redone in
 //! f64. Every check runs on every structure and every path (single ray and packets).
 
-mod common;
-mod robust;
+use crate::common;
+use crate::robust;
 
 use common::Rng;
 use glam::{DVec3, Quat, Vec3};

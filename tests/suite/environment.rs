@@ -3,7 +3,7 @@
 //! integrals, what rays that miss see, energy conservation around glass, shadows from
 //! the sky, the TOML keys and their errors.
 
-mod common;
+use crate::common;
 
 use common::Rng;
 use glam::Vec3;

@@ -2,8 +2,8 @@
 //! self-intersect, at every scale from 1e-6 to 1e6 and offsets up to 1e7, on every
 //! structure and every path (single ray and 16-ray packets).
 
-mod common;
-mod robust;
+use crate::common;
+use crate::robust;
 
 use common::Rng;
 use glam::Vec3;
