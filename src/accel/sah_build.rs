@@ -143,6 +143,21 @@ impl BuildNode {
             BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.to_aabb(),
         }
     }
+
+    /// The sum over the leaves of the started blocks of `block` primitives (with
+    /// `block` 4, the triangle groups the collapse makes), so that their array is
+    /// allocated once: grown by doubling it was copied and its pages touched twice.
+    pub(super) fn leaf_blocks(&self, block: usize) -> usize {
+        let mut stack = vec![self];
+        let mut total = 0;
+        while let Some(node) = stack.pop() {
+            match node {
+                BuildNode::Leaf { count, .. } => total += count.div_ceil(block.max(1)),
+                BuildNode::Interior { children, .. } => stack.extend(children.iter()),
+            }
+        }
+        total
+    }
 }
 
 struct Builder {
@@ -502,8 +517,8 @@ impl Builder {
             let bins = refs
                 .par_chunks(PARALLEL_THRESHOLD)
                 .map(|chunk| {
-                    let mut bins = Bins::new();
-                    bins.add_all(chunk, cb.min, scale, bins_n);
+                    let (mut bins, mut other) = (Bins::new(), Bins::new());
+                    bins.add_all_paired(&mut other, chunk, cb.min, scale, bins_n);
                     bins
                 })
                 .reduce(Bins::new, |a, b| a.merge(&b));
