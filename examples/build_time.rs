@@ -49,11 +49,11 @@ fn main() -> packet_render::Result<()> {
         Ok(n) => BenchMesh::procedural(n),
         Err(_) => BenchMesh::from_obj(std::path::Path::new(what))?,
     };
-    if let Some(path) = obj {
-        if let Err(e) = write_obj(&mesh, &path) {
-            eprintln!("cannot write {path}: {e}");
-            std::process::exit(1);
-        }
+    if let Some(path) = obj
+        && let Err(e) = write_obj(&mesh, &path)
+    {
+        eprintln!("cannot write {path}: {e}");
+        std::process::exit(1);
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
