@@ -92,7 +92,10 @@ where
             ids: &ids,
             triangles,
             nodes: Vec::with_capacity(n / 2 + 1),
-            groups: Vec::new(),
+            groups: Vec::with_capacity(match (&tree, triangles) {
+                (Some(t), Some(_)) => t.leaf_blocks(4),
+                _ => 0,
+            }),
         };
         let root = match &tree {
             None => EMPTY_CHILD,
