@@ -366,11 +366,31 @@ where
 /// Batches with fewer rays go through the packet kernels.
 pub const STREAM_MIN_BATCH: usize = 128;
 
-/// Whether a batch is better traced as a stream than as packets: at least
-/// [`STREAM_MIN_BATCH`] rays, and most of its 16-ray packets incoherent (their rays
-/// fall into more than two groups of direction octant and dominant axis, which sends a
-/// packet ray by ray: see `packet_setup.rs`).
+/// Whether the stream kernel beats the packet kernels' ray-by-ray fallback on
+/// incoherent batches in the instruction set this binary was built for, as measured
+/// (bunny, diffuse rays, 1 thread, interleaved runs, Mrays/s; see the README):
+/// - AVX-512 (compaction by `vpcompressd`): stream level with Embree, 6.24 against
+///   6.33, well ahead of packets.
+/// - AVX2 with the left-pack compaction (`simd/left_pack.rs`): stream ahead of
+///   packets (figures in the README's stream section).
+/// - Without AVX2 the compaction is the scalar loop, which measured slower than
+///   packets on this AVX2 machine (stream 2.73 against bvh8-packet 3.16, when AVX2
+///   builds still used that loop): such builds keep incoherent batches in packets.
+pub const STREAM_WINS: bool = cfg!(all(
+    target_arch = "x86_64",
+    any(target_feature = "avx2", target_feature = "avx512f")
+));
+
+/// Whether a batch is better traced as a stream than as packets: the stream kernel
+/// wins in this build ([`STREAM_WINS`]) and the batch is [`incoherent_batch`].
 pub fn prefers_stream(rays: &[Ray]) -> bool {
+    STREAM_WINS && incoherent_batch(rays)
+}
+
+/// At least [`STREAM_MIN_BATCH`] rays, and most of its 16-ray packets incoherent (their
+/// rays fall into more than two groups of direction octant and dominant axis, which
+/// sends a packet ray by ray: see `packet_setup.rs`).
+pub fn incoherent_batch(rays: &[Ray]) -> bool {
     if rays.len() < STREAM_MIN_BATCH {
         return false;
     }
