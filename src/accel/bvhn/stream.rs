@@ -14,7 +14,7 @@
 //! of the list is tested against all N children at once (the single-ray N-wide slab
 //! test, with the same arithmetic and the same conservative far-plane scale as
 //! `single.rs`) and its child mask stored; then each entered child's list is compacted
-//! from the masks, sixteen ids a step (`simd::compact`). Children are pushed far to near
+//! from the masks, sixteen ids a step with AVX-512, eight with AVX2 (`simd::compact`). Children are pushed far to near
 //! by their rays' mean entry distance, and prefetched as they are pushed. A list that
 //! has shrunk to fewer than [`STREAM_MIN_RAYS`] rays finishes its subtree ray by ray
 //! (`closest_from` / `any_from`), as DRST does. Leaves run the single-ray leaf kernels
@@ -371,11 +371,13 @@ pub const STREAM_MIN_BATCH: usize = 128;
 /// (bunny, diffuse rays, 1 thread, interleaved runs, Mrays/s; see the README):
 /// - AVX-512 (compaction by `vpcompressd`): stream level with Embree, 6.24 against
 ///   6.33, well ahead of packets.
-/// - AVX2 with the left-pack compaction (`simd/left_pack.rs`): stream ahead of
-///   packets (figures in the README's stream section).
-/// - Without AVX2 the compaction is the scalar loop, which measured slower than
-///   packets on this AVX2 machine (stream 2.73 against bvh8-packet 3.16, when AVX2
-///   builds still used that loop): such builds keep incoherent batches in packets.
+/// - AVX2 with the left-pack compaction (`simd/left_pack.rs`): stream 2.77-2.93
+///   against bvh8-packet 2.51-2.67 Mrays per CPU-second (a loaded machine; README,
+///   "AVX2 compaction"); on the 10^6-triangle mesh level (1.83 against 1.92).
+/// - Without AVX2 the compaction is the scalar loop, which measured no faster than
+///   packets on this AVX2 machine when AVX2 builds still used it (stream 2.73 against
+///   bvh8-packet 3.16 Mrays/s in a quiet run; 2.50-2.77 against 2.60-2.68 per
+///   CPU-second under load): such builds keep incoherent batches in packets.
 pub const STREAM_WINS: bool = cfg!(all(
     target_arch = "x86_64",
     any(target_feature = "avx2", target_feature = "avx512f")
