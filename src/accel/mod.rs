@@ -23,8 +23,8 @@ pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvhn::{
     Bvh, Bvh4, Bvh4Node, Bvh4QNode, Bvh4c, Bvh8, Bvh8Node, Bvh8QNode, Bvh8c, BvhNode, NodeWidth,
-    PACKET_MIN_ACTIVE, Prefetch, QNode, STREAM_MIN_BATCH, STREAM_MIN_RAYS, WideNode, Width,
-    prefers_stream,
+    PACKET_MIN_ACTIVE, Prefetch, QNode, STREAM_MIN_BATCH, STREAM_MIN_RAYS, STREAM_WINS, WideNode,
+    Width, incoherent_batch, prefers_stream,
 };
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
@@ -414,7 +414,8 @@ impl SceneAccel {
 
     /// Closest hits for a batch of rays, through each kind's batch entry point (BVH4:
     /// 16 consecutive rays as one packet; a batch that [`prefers_stream`], of at least
-    /// [`STREAM_MIN_BATCH`] mostly incoherent rays, as one stream), merged by distance exactly as
+    /// [`STREAM_MIN_BATCH`] mostly incoherent rays in a build where the stream kernel
+    /// measures faster ([`STREAM_WINS`]: AVX2 or AVX-512), as one stream), merged by distance exactly as
     /// [`closest_hit`](Self::closest_hit) merges them: each later kind searches only in
     /// front of the hit found so far, so the results are identical. `scratch` is reused
     /// between calls.

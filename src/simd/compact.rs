@@ -1,14 +1,18 @@
 //! Ray-id compaction for stream traversal: the ids whose child mask has a given bit,
 //! in order. With AVX-512 sixteen ids are selected per step (`vpcompressd` into a
 //! register, then one full store: the memory form of `vpcompressd` is microcoded and
-//! slow on AMD Zen 4); otherwise a branch-free scalar loop.
+//! slow on AMD Zen 4). With AVX2 (no compress instruction) eight ids per step by the
+//! standard left-pack: the eight selection bits index a table of packed lane indices
+//! (`left_pack`), which `vpermd` applies to the ids before one full store. Otherwise a
+//! branch-free scalar loop.
 
 /// Writes the ids `ids[k]` with bit `bit` set in `masks[k]` to the front of `out`, in
-/// order, and returns how many. `masks` must be as long as `ids`, and `out` at least
-/// [`COMPACT_SLACK`] longer than `ids`: the vector path stores whole registers.
+/// order, and returns how many. `masks` must be as long as `ids`, `out` at least
+/// [`COMPACT_SLACK`] longer than `ids` (the vector paths store whole registers), and
+/// `bit` below 32.
 #[inline]
 pub fn select_ids(ids: &[u32], masks: &[u32], bit: u32, out: &mut [u32]) -> usize {
-    assert!(masks.len() >= ids.len() && out.len() >= ids.len() + COMPACT_SLACK);
+    assert!(masks.len() >= ids.len() && out.len() >= ids.len() + COMPACT_SLACK && bit < 32);
     #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
     {
         // SAFETY: the lengths were checked above: every load reads within `ids` and
@@ -16,7 +20,21 @@ pub fn select_ids(ids: &[u32], masks: &[u32], bit: u32, out: &mut [u32]) -> usiz
         // `out[n..]` with n <= ids.len().
         unsafe { select_ids_avx512(ids, masks, bit, out) }
     }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+    #[cfg(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        not(target_feature = "avx512f")
+    ))]
+    {
+        // SAFETY: the lengths were checked above: the vector loads read 8 lanes at
+        // `k < ids.len() - 7`, every store writes 8 lanes at `out[n..]` with
+        // n <= k <= ids.len(), and the tail is scalar.
+        unsafe { super::left_pack::select_ids_avx2(ids, masks, bit, out) }
+    }
+    #[cfg(not(all(
+        target_arch = "x86_64",
+        any(target_feature = "avx512f", target_feature = "avx2")
+    )))]
     {
         select_ids_scalar(ids, masks, bit, out)
     }

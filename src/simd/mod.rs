@@ -15,6 +15,7 @@ pub mod direct_light;
 pub mod exact_sums;
 pub mod kernels;
 pub mod lanes3;
+pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
 pub mod quant;

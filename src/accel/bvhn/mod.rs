@@ -49,5 +49,7 @@ mod validate;
 pub use node::{Bvh4Node, Bvh8Node, BvhNode, NodeWidth, WideNode, Width};
 pub use packet::PACKET_MIN_ACTIVE;
 pub use qnode::{Bvh4QNode, Bvh8QNode, QNode};
-pub use stream::{STREAM_MIN_BATCH, STREAM_MIN_RAYS, prefers_stream};
+pub use stream::{
+    STREAM_MIN_BATCH, STREAM_MIN_RAYS, STREAM_WINS, incoherent_batch, prefers_stream,
+};
 pub use tree::{Bvh, Bvh4, Bvh4c, Bvh8, Bvh8c, Prefetch};

@@ -14,7 +14,7 @@
 //! of the list is tested against all N children at once (the single-ray N-wide slab
 //! test, with the same arithmetic and the same conservative far-plane scale as
 //! `single.rs`) and its child mask stored; then each entered child's list is compacted
-//! from the masks, sixteen ids a step (`simd::compact`). Children are pushed far to near
+//! from the masks, sixteen ids a step with AVX-512, eight with AVX2 (`simd::compact`). Children are pushed far to near
 //! by their rays' mean entry distance, and prefetched as they are pushed. A list that
 //! has shrunk to fewer than [`STREAM_MIN_RAYS`] rays finishes its subtree ray by ray
 //! (`closest_from` / `any_from`), as DRST does. Leaves run the single-ray leaf kernels
@@ -366,11 +366,33 @@ where
 /// Batches with fewer rays go through the packet kernels.
 pub const STREAM_MIN_BATCH: usize = 128;
 
-/// Whether a batch is better traced as a stream than as packets: at least
-/// [`STREAM_MIN_BATCH`] rays, and most of its 16-ray packets incoherent (their rays
-/// fall into more than two groups of direction octant and dominant axis, which sends a
-/// packet ray by ray: see `packet_setup.rs`).
+/// Whether the stream kernel beats the packet kernels' ray-by-ray fallback on
+/// incoherent batches in the instruction set this binary was built for, as measured
+/// (bunny, diffuse rays, 1 thread, interleaved runs, Mrays/s; see the README):
+/// - AVX-512 (compaction by `vpcompressd`): stream level with Embree, 6.24 against
+///   6.33, well ahead of packets.
+/// - AVX2 with the left-pack compaction (`simd/left_pack.rs`): stream 2.77-2.93
+///   against bvh8-packet 2.51-2.67 Mrays per CPU-second (a loaded machine; README,
+///   "AVX2 compaction"); on the 10^6-triangle mesh level (1.83 against 1.92).
+/// - Without AVX2 the compaction is the scalar loop, which measured no faster than
+///   packets on this AVX2 machine when AVX2 builds still used it (stream 2.73 against
+///   bvh8-packet 3.16 Mrays/s in a quiet run; 2.50-2.77 against 2.60-2.68 per
+///   CPU-second under load): such builds keep incoherent batches in packets.
+pub const STREAM_WINS: bool = cfg!(all(
+    target_arch = "x86_64",
+    any(target_feature = "avx2", target_feature = "avx512f")
+));
+
+/// Whether a batch is better traced as a stream than as packets: the stream kernel
+/// wins in this build ([`STREAM_WINS`]) and the batch is [`incoherent_batch`].
 pub fn prefers_stream(rays: &[Ray]) -> bool {
+    STREAM_WINS && incoherent_batch(rays)
+}
+
+/// At least [`STREAM_MIN_BATCH`] rays, and most of its 16-ray packets incoherent (their
+/// rays fall into more than two groups of direction octant and dominant axis, which
+/// sends a packet ray by ray: see `packet_setup.rs`).
+pub fn incoherent_batch(rays: &[Ray]) -> bool {
     if rays.len() < STREAM_MIN_BATCH {
         return false;
     }
