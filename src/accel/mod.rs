@@ -367,6 +367,19 @@ impl SceneAccel {
         self.filtered_hit_from(ray, opts, filter, Occluder::Triangles)
     }
 
+    /// Whether the scene has a primitive set from `from` on (the filtered query's
+    /// order: triangles, spheres, moving geometry, instances and planes), so that a
+    /// query from there could meet anything.
+    pub fn has_sets_from(&self, from: Occluder) -> bool {
+        let present = [
+            self.triangles.is_some(),
+            self.spheres.is_some(),
+            self.moving.is_some(),
+            self.instances.is_some() || !self.planes.is_empty(),
+        ];
+        present[from as usize..].contains(&true)
+    }
+
     /// [`filtered_hit`](Self::filtered_hit) over the primitive sets from `from` on, in
     /// the same order, skipping the sets before it: for a ray that the occlusion query
     /// ([`occluders_batch`](Self::occluders_batch), [`occluder`](Self::occluder)) found

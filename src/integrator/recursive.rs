@@ -52,7 +52,7 @@ use rayon::prelude::*;
 /// Renders `scene` with the structure `accel`. `opts` must pass
 /// [`RenderOptions::validate`]; parallelism is whatever rayon pool the caller runs in.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
-    let filter = ShadowFilter::new(scene, opts.transmitted_shadows);
+    let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     let mut out = render_tiles(scene, opts, Workspace::default, |ws, camera, tile| {
         render_tile(scene, accel, opts, filter.as_ref(), camera, ws, tile)
     });
@@ -134,7 +134,7 @@ pub(crate) fn render_pixels<T: Send>(
     keep: impl Fn(&PixelSums) -> T + Sync,
 ) -> (Vec<T>, Vec<u64>, RayCounts) {
     let camera = CameraSampler::new(scene, opts);
-    let filter = ShadowFilter::new(scene, opts.transmitted_shadows);
+    let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     type Chunk<T> = (Vec<T>, Vec<u64>, RayCounts);
     let chunks: Vec<Chunk<T>> = pixels
         .par_chunks(64)

@@ -46,7 +46,7 @@ use super::pixel_filter::resolve_pixel_into;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
-use super::shadow::ShadowFilter;
+use super::shadow::{ShadowFilter, ShadowScratch};
 use super::tiles::{Tile, TileResult, render_tiles};
 use crate::accel::{BatchScratch, Occluder, SceneAccel, SceneHit};
 use crate::film::PixelSums;
@@ -62,7 +62,7 @@ use std::time::Instant;
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
     let pipeline = Pipeline::new(scene, opts);
     let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment);
-    let filter = ShadowFilter::new(scene, opts.transmitted_shadows);
+    let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     render_tiles(
         scene,
         opts,
@@ -163,6 +163,9 @@ struct Workspace {
     occluded: Vec<bool>,
     /// Which primitive set blocks each shadow ray (scenes with transmitted shadows).
     occluders: Vec<Option<Occluder>>,
+    /// The transmittance of each shadow ray, and the buffers that settle it.
+    transmitted: Vec<Vec3>,
+    shadow_scratch: ShadowScratch,
     scratch: BatchScratch,
     shade: ShadeScratch,
 }
@@ -199,6 +202,8 @@ impl Workspace {
             hits: Vec::new(),
             occluded: Vec::new(),
             occluders: Vec::new(),
+            transmitted: Vec::new(),
+            shadow_scratch: ShadowScratch::default(),
             scratch: BatchScratch::default(),
             shade: ShadeScratch::default(),
         }
@@ -507,17 +512,17 @@ fn trace_shadows(
             occluders.clear();
             occluders.resize(q.rays.len(), None);
             accel.occluders_batch(&q.rays, occluders, &mut ws.occluded, &mut ws.scratch);
-            for (((&first, &slot), &c), ray) in occluders
-                .iter()
-                .zip(&q.slot)
-                .zip(&q.contribution)
-                .zip(&q.rays)
-            {
-                let Some(first) = first else {
-                    acc[slot as usize] += c;
-                    continue;
-                };
-                let t = filter.transmittance(scene, accel, ray, first, &mut sinks.rays);
+            filter.transmittance_batch(
+                scene,
+                accel,
+                &q.rays,
+                occluders,
+                &mut ws.transmitted,
+                &mut ws.shadow_scratch,
+                &mut sinks.rays,
+            );
+            for ((&t, &slot), &c) in ws.transmitted.iter().zip(&q.slot).zip(&q.contribution) {
+                // An unblocked ray's factor is exactly one, and `c * 1` is `c`.
                 if t != Vec3::ZERO {
                     acc[slot as usize] += c * t;
                 }
