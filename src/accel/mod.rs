@@ -243,6 +243,38 @@ pub struct SceneHit {
     pub v: f32,
 }
 
+/// Which primitive sets of a scene block a ray first, in the order the scene-level
+/// queries test them ([`SceneAccel::occluder`], [`SceneAccel::occluders_batch`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Occluder {
+    Triangles,
+    Spheres,
+    /// Moving triangles or moving spheres (one occlusion query covers both).
+    Moving,
+    /// Instances or infinite planes.
+    Other,
+}
+
+impl Occluder {
+    pub const ALL: [Occluder; 4] = [
+        Occluder::Triangles,
+        Occluder::Spheres,
+        Occluder::Moving,
+        Occluder::Other,
+    ];
+
+    /// The first of the filtered query's four flat sets (triangles, spheres, moving
+    /// triangles, moving spheres) that this group covers; 4 is past them all.
+    fn first_set(self) -> usize {
+        match self {
+            Occluder::Triangles => 0,
+            Occluder::Spheres => 1,
+            Occluder::Moving => 2,
+            Occluder::Other => 4,
+        }
+    }
+}
+
 /// One primitive set of a scene and how its hits are named.
 type PrimSet<'a> = (Option<&'a dyn Accel>, fn(u32) -> PrimRef);
 
@@ -332,6 +364,34 @@ impl SceneAccel {
         opts: QueryOptions,
         filter: &mut dyn FnMut(&SceneCandidate) -> bool,
     ) -> Option<SceneHit> {
+        self.filtered_hit_from(ray, opts, filter, Occluder::Triangles)
+    }
+
+    /// Whether the scene has a primitive set from `from` on (the filtered query's
+    /// order: triangles, spheres, moving geometry, instances and planes), so that a
+    /// query from there could meet anything.
+    pub fn has_sets_from(&self, from: Occluder) -> bool {
+        let present = [
+            self.triangles.is_some(),
+            self.spheres.is_some(),
+            self.moving.is_some(),
+            self.instances.is_some() || !self.planes.is_empty(),
+        ];
+        present[from as usize..].contains(&true)
+    }
+
+    /// [`filtered_hit`](Self::filtered_hit) over the primitive sets from `from` on, in
+    /// the same order, skipping the sets before it: for a ray that the occlusion query
+    /// ([`occluders_batch`](Self::occluders_batch), [`occluder`](Self::occluder)) found
+    /// blocked first by `from`, the sets before it have no candidate in the interval,
+    /// so the result is the full query's.
+    pub fn filtered_hit_from(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut dyn FnMut(&SceneCandidate) -> bool,
+        from: Occluder,
+    ) -> Option<SceneHit> {
         let moving = self.moving.as_ref();
         let sets: [PrimSet; 4] = [
             (self.triangles.as_deref(), PrimRef::Triangle),
@@ -346,7 +406,7 @@ impl SceneAccel {
             ),
         ];
         let mut best: Option<SceneHit> = None;
-        for (accel, prim) in sets {
+        for (accel, prim) in sets.into_iter().skip(from.first_set()) {
             let Some(accel) = accel else { continue };
             let mut r = *ray;
             if let Some(b) = &best {
@@ -410,6 +470,22 @@ impl SceneAccel {
             || self.spheres.as_ref().is_some_and(|a| a.any_hit(ray))
             || self.moving.as_ref().is_some_and(|m| m.any_hit(ray))
             || self.any_extra(ray)
+    }
+
+    /// [`any_hit`](Self::any_hit) that says which primitive set blocks the ray: the
+    /// first in the order the query tests them, `None` when nothing does.
+    pub fn occluder(&self, ray: &Ray) -> Option<Occluder> {
+        if self.triangles.as_ref().is_some_and(|a| a.any_hit(ray)) {
+            Some(Occluder::Triangles)
+        } else if self.spheres.as_ref().is_some_and(|a| a.any_hit(ray)) {
+            Some(Occluder::Spheres)
+        } else if self.moving.as_ref().is_some_and(|m| m.any_hit(ray)) {
+            Some(Occluder::Moving)
+        } else if self.any_extra(ray) {
+            Some(Occluder::Other)
+        } else {
+            None
+        }
     }
 
     /// Closest hits for a batch of rays, through each kind's batch entry point (BVH4:
@@ -486,20 +562,58 @@ impl SceneAccel {
     /// earlier kind found blocked. Incoherent batches go through the stream kernel, as in
     /// [`closest_hit_batch`](Self::closest_hit_batch). Same answers as [`any_hit`](Self::any_hit).
     pub fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool], scratch: &mut BatchScratch) {
+        self.any_hit_batch_marking(rays, out, scratch, |_, _| {});
+    }
+
+    /// [`any_hit_batch`](Self::any_hit_batch) that says which primitive set blocks each
+    /// ray (the same work and answers): `out[i]` is [`occluder`](Self::occluder) of ray
+    /// `i`. `blocked` is scratch (the plain answers).
+    pub fn occluders_batch(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<Occluder>],
+        blocked: &mut Vec<bool>,
+        scratch: &mut BatchScratch,
+    ) {
+        debug_assert_eq!(rays.len(), out.len());
+        out.fill(None);
+        blocked.clear();
+        blocked.resize(rays.len(), false);
+        self.any_hit_batch_marking(rays, blocked, scratch, |i, set| out[i] = Some(set));
+    }
+
+    /// The occlusion batch, calling `mark(i, set)` once for each ray `i` when the set
+    /// `set` is the first found blocking it.
+    #[inline(always)]
+    fn any_hit_batch_marking(
+        &self,
+        rays: &[Ray],
+        out: &mut [bool],
+        scratch: &mut BatchScratch,
+        mut mark: impl FnMut(usize, Occluder),
+    ) {
         debug_assert_eq!(rays.len(), out.len());
         out.fill(false);
-        let kinds = [self.triangles.as_deref(), self.spheres.as_deref()];
+        let kinds = [
+            (self.triangles.as_deref(), Occluder::Triangles),
+            (self.spheres.as_deref(), Occluder::Spheres),
+        ];
         let stream = prefers_stream(rays);
         let mut first = true;
-        for a in kinds.into_iter().flatten() {
-            if first && stream {
-                a.any_hit_stream(rays, out);
-                first = false;
-                continue;
-            }
+        for (a, set) in kinds {
+            let Some(a) = a else { continue };
             if first {
-                a.any_hit_batch(rays, out);
+                if stream {
+                    a.any_hit_stream(rays, out);
+                } else {
+                    a.any_hit_batch(rays, out);
+                }
                 first = false;
+                for (i, &b) in out.iter().enumerate() {
+                    if b {
+                        mark(i, set);
+                    }
+                }
                 continue;
             }
             // Only the rays still unblocked, packed so packets stay full.
@@ -520,16 +634,25 @@ impl SceneAccel {
             }
             for (&i, &b) in scratch.index.iter().zip(scratch.blocked.iter()) {
                 out[i as usize] = b;
+                if b {
+                    mark(i as usize, set);
+                }
             }
         }
         if let Some(m) = &self.moving {
-            for (r, o) in rays.iter().zip(out.iter_mut()) {
-                *o = *o || m.any_hit(r);
+            for (i, (r, o)) in rays.iter().zip(out.iter_mut()).enumerate() {
+                if !*o && m.any_hit(r) {
+                    *o = true;
+                    mark(i, Occluder::Moving);
+                }
             }
         }
         if self.instances.is_some() || !self.planes.is_empty() {
-            for (r, o) in rays.iter().zip(out.iter_mut()) {
-                *o = *o || self.any_extra(r);
+            for (i, (r, o)) in rays.iter().zip(out.iter_mut()).enumerate() {
+                if !*o && self.any_extra(r) {
+                    *o = true;
+                    mark(i, Occluder::Other);
+                }
             }
         }
     }

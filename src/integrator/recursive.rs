@@ -38,8 +38,9 @@ use super::camera_rays::{CameraSampler, PixelSamples, SamplePlan};
 use super::interaction::SurfaceInteraction;
 use super::pixel_filter::resolve_pixel;
 use super::shader::{Emitted, Shader};
+use super::shadow::ShadowFilter;
 use super::tiles::{Tile, TileResult, render_tiles};
-use super::{RenderOptions, RenderOutput, shadow, texturing};
+use super::{RenderOptions, RenderOutput, texturing};
 use crate::accel::SceneAccel;
 use crate::film::PixelSums;
 use crate::geometry::Ray;
@@ -51,8 +52,9 @@ use rayon::prelude::*;
 /// Renders `scene` with the structure `accel`. `opts` must pass
 /// [`RenderOptions::validate`]; parallelism is whatever rayon pool the caller runs in.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
+    let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     let mut out = render_tiles(scene, opts, Workspace::default, |ws, camera, tile| {
-        render_tile(scene, accel, opts, camera, ws, tile)
+        render_tile(scene, accel, opts, filter.as_ref(), camera, ws, tile)
     });
     out.stages_ms = None;
     out
@@ -63,11 +65,9 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
 struct Tracer<'a> {
     shader: Shader<'a>,
     accel: &'a SceneAccel,
-    /// Shadow rays blocked by glass are traced again for its transmission.
-    transmits: bool,
-    /// Glass passes shadow rays (the transmitted-shadows setting); cut-out holes
-    /// always do.
-    through_glass: bool,
+    /// Shadow rays blocked by glass (or a cut-out) are traced again for its
+    /// transmission (`shadow` module); `None` when the render has neither.
+    filter: Option<&'a ShadowFilter>,
     /// The scene has cut-out materials: camera and child rays skip their holes
     /// (`texturing`).
     cutouts: bool,
@@ -90,11 +90,12 @@ fn render_tile(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
+    filter: Option<&ShadowFilter>,
     camera: &CameraSampler,
     ws: &mut Workspace,
     tile: Tile,
 ) -> TileResult {
-    let mut tracer = Tracer::new(scene, accel, opts, camera.plan, ws);
+    let mut tracer = Tracer::new(scene, accel, opts, filter, camera.plan, ws);
     let mut pixels = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
     let mut nonfinite_samples = 0;
     for y in tile.y0..tile.y1 {
@@ -133,11 +134,12 @@ pub(crate) fn render_pixels<T: Send>(
     keep: impl Fn(&PixelSums) -> T + Sync,
 ) -> (Vec<T>, Vec<u64>, RayCounts) {
     let camera = CameraSampler::new(scene, opts);
+    let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     type Chunk<T> = (Vec<T>, Vec<u64>, RayCounts);
     let chunks: Vec<Chunk<T>> = pixels
         .par_chunks(64)
         .map_init(Workspace::default, |ws, chunk| {
-            let mut tracer = Tracer::new(scene, accel, opts, camera.plan, ws);
+            let mut tracer = Tracer::new(scene, accel, opts, filter.as_ref(), camera.plan, ws);
             let mut sums = Vec::with_capacity(chunk.len());
             let mut cost = Vec::with_capacity(chunk.len());
             let mut nonfinite = 0;
@@ -172,14 +174,14 @@ impl Tracer<'_> {
         scene: &'a Scene,
         accel: &'a SceneAccel,
         opts: &RenderOptions,
+        filter: Option<&'a ShadowFilter>,
         plan: SamplePlan,
         ws: &mut Workspace,
     ) -> Tracer<'a> {
         Tracer {
             shader: Shader::new(scene, opts, plan),
             accel,
-            transmits: shadow::transmits(scene, opts.transmitted_shadows),
-            through_glass: opts.transmitted_shadows,
+            filter,
             cutouts: texturing::has_cutouts(scene),
             rays: RayCounts::default(),
             drawn: EffectSamplesDrawn::default(),
@@ -244,19 +246,21 @@ impl Tracer<'_> {
         );
         let mut l = out.local;
         for s in &out.shadow {
-            if !self.accel.any_hit(&s.ray) {
-                l += s.contribution;
-            } else if self.transmits {
-                // Blocked, but perhaps only by glass (`shadow` module).
-                self.rays.transmitted_shadow += 1;
-                let t = shadow::filtered_transmittance(
-                    self.shader.scene,
-                    self.accel,
-                    &s.ray,
-                    self.through_glass,
-                );
-                if t != Vec3::ZERO {
-                    l += s.contribution * t;
+            let Some(filter) = self.filter else {
+                if !self.accel.any_hit(&s.ray) {
+                    l += s.contribution;
+                }
+                continue;
+            };
+            // Blocked, but perhaps only by glass (`shadow` module).
+            match self.accel.occluder(&s.ray) {
+                None => l += s.contribution,
+                Some(first) => {
+                    let scene = self.shader.scene;
+                    let t = filter.transmittance(scene, self.accel, &s.ray, first, &mut self.rays);
+                    if t != Vec3::ZERO {
+                        l += s.contribution * t;
+                    }
                 }
             }
         }

@@ -38,15 +38,17 @@
 //! stages it shares with the recursive integrator (camera rays, surface interactions,
 //! shading, pixel filter, tiles) in their own files.
 
+use super::RenderOptions;
+use super::RenderOutput;
 use super::camera_packets::CameraStaging;
 use super::camera_rays::{CameraSampler, SamplePlan};
 use super::pixel_filter::resolve_pixel_into;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
+use super::shadow::{ShadowFilter, ShadowScratch};
 use super::tiles::{Tile, TileResult, render_tiles};
-use super::{RenderOptions, RenderOutput, shadow};
-use crate::accel::{BatchScratch, SceneAccel, SceneHit};
+use crate::accel::{BatchScratch, Occluder, SceneAccel, SceneHit};
 use crate::film::PixelSums;
 use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
@@ -60,12 +62,13 @@ use std::time::Instant;
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
     let pipeline = Pipeline::new(scene, opts);
     let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment);
+    let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     render_tiles(
         scene,
         opts,
         || Workspace::new(&pipeline, scene),
         |ws, camera, tile| {
-            let stage = (&pipeline, lanes.as_ref());
+            let stage = (&pipeline, lanes.as_ref(), filter.as_ref());
             render_tile(scene, accel, opts, stage, camera, ws, tile)
         },
     )
@@ -158,6 +161,11 @@ struct Workspace {
     sinks: Sinks,
     hits: Vec<Option<SceneHit>>,
     occluded: Vec<bool>,
+    /// Which primitive set blocks each shadow ray (scenes with transmitted shadows).
+    occluders: Vec<Option<Occluder>>,
+    /// The transmittance of each shadow ray, and the buffers that settle it.
+    transmitted: Vec<Vec3>,
+    shadow_scratch: ShadowScratch,
     scratch: BatchScratch,
     shade: ShadeScratch,
 }
@@ -193,6 +201,9 @@ impl Workspace {
             },
             hits: Vec::new(),
             occluded: Vec::new(),
+            occluders: Vec::new(),
+            transmitted: Vec::new(),
+            shadow_scratch: ShadowScratch::default(),
             scratch: BatchScratch::default(),
             shade: ShadeScratch::default(),
         }
@@ -225,7 +236,7 @@ struct WaveContext<'a> {
     lanes: Option<&'a LaneShading>,
     accel: &'a SceneAccel,
     /// Shadow rays through glass (`shadow` module) need the scene to look up materials.
-    transmit: Option<(&'a Scene, bool)>,
+    transmit: Option<(&'a Scene, &'a ShadowFilter)>,
     /// Cut-out holes (`texturing`): hits in them are replaced by the solid hit behind.
     cutouts: Option<&'a Scene>,
 }
@@ -234,7 +245,7 @@ fn render_tile(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
-    (pipeline, lanes): (&Pipeline, Option<&LaneShading>),
+    (pipeline, lanes, filter): (&Pipeline, Option<&LaneShading>, Option<&ShadowFilter>),
     camera: &CameraSampler,
     ws: &mut Workspace,
     tile: Tile,
@@ -244,8 +255,7 @@ fn render_tile(
         shader: Shader::new(scene, opts, plan),
         lanes,
         accel,
-        transmit: shadow::transmits(scene, opts.transmitted_shadows)
-            .then_some((scene, opts.transmitted_shadows)),
+        transmit: filter.map(|f| (scene, f)),
         cutouts: super::texturing::has_cutouts(scene).then_some(scene),
     };
     let mut stages = StageTimes {
@@ -398,14 +408,7 @@ fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u
     );
     stages.shade += ms_since(t);
     let mut peak = ws.live_paths(true);
-    trace_shadows(
-        accel,
-        transmit,
-        &mut ws.sinks,
-        &mut ws.occluded,
-        &mut ws.scratch,
-        stages,
-    );
+    trace_shadows(accel, transmit, ws, stages);
 
     // Later waves: the child queues, one kind at a time.
     let mut depth = 1;
@@ -445,14 +448,7 @@ fn run_waves(cx: &WaveContext, ws: &mut Workspace, stages: &mut StageTimes) -> u
                 queue.clear();
             }
         }
-        trace_shadows(
-            accel,
-            transmit,
-            &mut ws.sinks,
-            &mut ws.occluded,
-            &mut ws.scratch,
-            stages,
-        );
+        trace_shadows(accel, transmit, ws, stages);
         depth += 1;
     }
     peak
@@ -487,18 +483,19 @@ fn trace_closest(
     }
 }
 
-/// Traces both shadow queues for occlusion and adds what reaches the lights. With
-/// `transmit` (transmitted shadows in a scene with glass) a blocked ray is traced again
-/// through the transmissive surfaces and adds its contribution times their
-/// transmission ([`shadow::transmittance`]), as the recursive integrator does.
+/// Traces the shadow queues for occlusion and adds what reaches the lights. With
+/// `transmit` (transmitted shadows in a scene with glass, or cut-outs) the occlusion
+/// query also says which primitive set blocks each ray, and a blocked ray adds its
+/// contribution times its transmittance ([`ShadowFilter::transmittance`]: zero behind
+/// an opaque set, else the filtered query from that set on), as the recursive
+/// integrator does.
 fn trace_shadows(
     accel: &SceneAccel,
-    transmit: Option<(&Scene, bool)>,
-    sinks: &mut Sinks,
-    occluded: &mut Vec<bool>,
-    scratch: &mut BatchScratch,
+    transmit: Option<(&Scene, &ShadowFilter)>,
+    ws: &mut Workspace,
     stages: &mut StageTimes,
 ) {
+    let sinks = &mut ws.sinks;
     let acc = &mut sinks.acc;
     for (q, &area) in sinks.shadow.iter_mut().zip(&sinks.area) {
         let stage = if area {
@@ -510,22 +507,34 @@ fn trace_shadows(
             continue;
         }
         let t = Instant::now();
-        occluded.clear();
-        occluded.resize(q.rays.len(), false);
-        accel.any_hit_batch(&q.rays, occluded, scratch);
-        for (((&blocked, &slot), &c), ray) in occluded
-            .iter()
-            .zip(&q.slot)
-            .zip(&q.contribution)
-            .zip(&q.rays)
-        {
-            if !blocked {
-                acc[slot as usize] += c;
-            } else if let Some((scene, through_glass)) = transmit {
-                sinks.rays.transmitted_shadow += 1;
-                let t = shadow::filtered_transmittance(scene, accel, ray, through_glass);
+        if let Some((scene, filter)) = transmit {
+            let occluders = &mut ws.occluders;
+            occluders.clear();
+            occluders.resize(q.rays.len(), None);
+            accel.occluders_batch(&q.rays, occluders, &mut ws.occluded, &mut ws.scratch);
+            filter.transmittance_batch(
+                scene,
+                accel,
+                &q.rays,
+                occluders,
+                &mut ws.transmitted,
+                &mut ws.shadow_scratch,
+                &mut sinks.rays,
+            );
+            for ((&t, &slot), &c) in ws.transmitted.iter().zip(&q.slot).zip(&q.contribution) {
+                // An unblocked ray's factor is exactly one, and `c * 1` is `c`.
                 if t != Vec3::ZERO {
                     acc[slot as usize] += c * t;
+                }
+            }
+        } else {
+            let occluded = &mut ws.occluded;
+            occluded.clear();
+            occluded.resize(q.rays.len(), false);
+            accel.any_hit_batch(&q.rays, occluded, &mut ws.scratch);
+            for ((&blocked, &slot), &c) in occluded.iter().zip(&q.slot).zip(&q.contribution) {
+                if !blocked {
+                    acc[slot as usize] += c;
                 }
             }
         }
