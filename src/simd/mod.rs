@@ -18,6 +18,7 @@ pub mod lanes3;
 pub mod pow;
 pub mod prefetch;
 pub mod quant;
+pub mod surface;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 use wide::{f32x4, f32x8, f32x16};
