@@ -76,15 +76,27 @@ impl CameraSampler {
             let eyes = plan.eye_begin as usize..plan.eye_end as usize;
             st.constant
                 .extend(st.sets.pixel_pos[eyes].iter().map(|&p| offset(p)));
+            if let [(ox, oy)] = st.constant[..] {
+                // One offset (the usual 1-sample frame): image points straight into
+                // lanes, 16 pixels at a time, with no staging arrays.
+                offsets.extend(std::iter::repeat_n((ox, oy), pixels.len()));
+                rays.reserve(pixels.len());
+                let closed = Packet::splat(self.lens.shutter[0]);
+                for chunk in pixels.chunks(PACKET_WIDTH) {
+                    let (mut px, mut py) = ([0.5f32; PACKET_WIDTH], [0.5f32; PACKET_WIDTH]);
+                    for (i, &(x, y, _)) in chunk.iter().enumerate() {
+                        (px[i], py[i]) = (x as f32 + ox, y as f32 + oy);
+                    }
+                    let (px, py) = (Packet::new(px), Packet::new(py));
+                    camera_rays(&self.frame, &self.lens, px, py, None, closed)
+                        .append(chunk.len(), rays);
+                }
+                return;
+            }
         }
         for &(x, y, index) in pixels {
             if constant {
-                // One offset (the usual 1-sample frame): a push, not a memcpy call of
-                // unknown length per pixel (3 % of the bunny frame's instructions).
-                match st.constant[..] {
-                    [o] => offsets.push(o),
-                    _ => offsets.extend_from_slice(&st.constant),
-                }
+                offsets.extend_from_slice(&st.constant);
                 for &(ox, oy) in &st.constant {
                     st.px.push(x as f32 + ox);
                     st.py.push(y as f32 + oy);

@@ -34,20 +34,38 @@ impl RayQueue {
     }
 
     /// Appends camera rays: consecutive accumulator slots from `first_slot`, weight and
-    /// throughput one, and the given paths (one per ray).
-    pub fn extend_camera(
+    /// throughput one, and path `first_path + (r + i) mod per_pixel` for ray `i` (`r`
+    /// the position of the first ray in its pixel: camera rays are numbered within
+    /// their pixel). When the queue is empty the rays are taken whole, without a copy
+    /// (`rays` gets the queue's old buffer, emptied); else they are moved over.
+    pub fn append_camera(
         &mut self,
-        rays: &[Ray],
+        rays: &mut Vec<Ray>,
         first_slot: u32,
-        paths: impl ExactSizeIterator<Item = u64>,
+        (first_path, r, per_pixel): (u64, usize, usize),
     ) {
-        debug_assert_eq!(rays.len(), paths.len());
-        let n = self.rays.len() + rays.len();
-        self.rays.extend_from_slice(rays);
-        self.slot.extend(first_slot..first_slot + rays.len() as u32);
+        let k = rays.len();
+        if self.rays.is_empty() {
+            std::mem::swap(&mut self.rays, rays);
+            rays.clear();
+        } else {
+            self.rays.append(rays);
+        }
+        let n = self.rays.len();
+        self.slot.extend(first_slot..first_slot + k as u32);
         self.weight.resize(n, Vec3::ONE);
         self.throughput.resize(n, Vec3::ONE);
-        self.path.extend(paths);
+        if per_pixel == 1 {
+            self.path.resize(n, first_path);
+        } else {
+            // A counter that wraps, rather than a division per ray.
+            let mut r = r % per_pixel;
+            self.path.extend((0..k).map(|_| {
+                let p = first_path + r as u64;
+                r = if r + 1 == per_pixel { 0 } else { r + 1 };
+                p
+            }));
+        }
     }
 
     pub fn push(&mut self, ray: Ray, slot: u32, weight: Vec3, throughput: Vec3, path: u64) {

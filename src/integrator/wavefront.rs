@@ -23,7 +23,7 @@
 //! 5. the child queues become the next wave (trace, shade, shadow) until they are
 //!    empty (the depth limit and the contribution cutoff stop emission in `shade_emit`);
 //! 6. the camera-sample accumulators are filtered into pixels by
-//!    [`resolve_pixel`](super::pixel_filter::resolve_pixel), the recursive renderer's own filter step (a sample whose total
+//!    [`resolve_pixels`](super::pixel_filter::resolve_pixels), the recursive renderer's own filter step (a sample whose total
 //!    is NaN or infinite is dropped and counted).
 //!
 //! Radiance is linear in the tree, so summing `weight · local` over the tree's nodes in
@@ -42,7 +42,7 @@ use super::RenderOptions;
 use super::RenderOutput;
 use super::camera_packets::CameraStaging;
 use super::camera_rays::{CameraSampler, SamplePlan};
-use super::pixel_filter::resolve_pixel_into;
+use super::pixel_filter::resolve_pixels;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
@@ -150,6 +150,8 @@ struct Workspace {
     staging: CameraStaging,
     pixels: Vec<(u32, u32, u64)>,
     generated: Vec<Ray>,
+    /// The part of `generated` that fits the batch, when not all of it does.
+    split: Vec<Ray>,
     /// Eye-sample offsets of each pixel not yet resolved, in generation order.
     offsets: Vec<(f32, f32)>,
     /// Row-major position in the tile of each pixel not yet resolved.
@@ -176,6 +178,7 @@ impl Workspace {
             staging: CameraStaging::default(),
             pixels: Vec::new(),
             generated: Vec::new(),
+            split: Vec::new(),
             offsets: Vec::new(),
             unresolved: Vec::new(),
             radiance: Vec::new(),
@@ -290,15 +293,14 @@ fn render_tile(
         ws.sinks.slot_pixel.clear();
         ws.camera.clear();
         let done = (ws.radiance.len() / rays_per_pixel).min(ws.unresolved.len());
-        for (g, &at) in ws.unresolved[..done].iter().enumerate() {
-            resolve_pixel_into(
-                &plan,
-                &ws.offsets[g * eye..(g + 1) * eye],
-                &ws.radiance[g * rays_per_pixel..(g + 1) * rays_per_pixel],
-                &mut nonfinite_samples,
-                &mut pixels[at as usize],
-            );
-        }
+        resolve_pixels(
+            &plan,
+            &ws.offsets[..done * eye],
+            &ws.radiance[..done * rays_per_pixel],
+            &ws.unresolved[..done],
+            &mut nonfinite_samples,
+            &mut pixels,
+        );
         ws.unresolved.drain(..done);
         ws.offsets.drain(..done * eye);
         ws.radiance.drain(..done * rays_per_pixel);
@@ -324,23 +326,34 @@ fn render_tile(
         // array filled in bulk: ray `i` of the block gets the next accumulator slot,
         // path `first_path + i mod rays_per_pixel` and its pixel's index. Pushing the
         // seven arrays ray by ray was a third of the camera stage (bunny 1024x1024).
+        // A block that fits whole is handed over without a copy.
+        let total = generated.len();
         let mut i = 0;
-        while i < generated.len() {
+        while i < total {
             let room = batch.saturating_sub(ws.camera.rays.len()).max(1);
-            let end = (i + room).min(generated.len());
+            let end = (i + room).min(total);
             let first_slot = ws.sinks.acc.len() as u32;
-            ws.camera.extend_camera(
-                &generated[i..end],
-                first_slot,
-                (i..end).map(|k| plan.first_path() + (k % rays_per_pixel) as u64),
-            );
+            let paths = (plan.first_path(), i, rays_per_pixel);
+            if i == 0 && end == total {
+                ws.camera.append_camera(&mut generated, first_slot, paths);
+            } else {
+                ws.split.clear();
+                ws.split.extend_from_slice(&generated[i..end]);
+                ws.camera.append_camera(&mut ws.split, first_slot, paths);
+            }
             ws.sinks
                 .acc
                 .resize(ws.sinks.acc.len() + (end - i), Vec3::ZERO);
             let pixels = &ws.pixels;
-            ws.sinks
-                .slot_pixel
-                .extend((i..end).map(|k| pixels[k / rays_per_pixel].2));
+            if rays_per_pixel == 1 {
+                ws.sinks
+                    .slot_pixel
+                    .extend(pixels[i..end].iter().map(|p| p.2));
+            } else {
+                ws.sinks
+                    .slot_pixel
+                    .extend((i..end).map(|k| pixels[k / rays_per_pixel].2));
+            }
             i = end;
             if ws.camera.rays.len() >= batch {
                 stages.camera += ms_since(*t);

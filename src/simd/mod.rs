@@ -19,6 +19,7 @@ pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
 pub mod quant;
+pub mod surface;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 use wide::{f32x4, f32x8, f32x16};
