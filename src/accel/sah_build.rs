@@ -19,7 +19,7 @@
 use super::Bvh2BuildOptions;
 use super::Primitives;
 use crate::geometry::Aabb;
-use glam::{BVec4A, Vec3A, Vec4};
+use glam::{BVec3A, BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Past this depth the builder splits at the object median, so the depth of any tree
@@ -752,6 +752,54 @@ fn goes_left(r: &PrimRef, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
     p.coord(r.centroid()[s.axis]) < p.bin
 }
 
+/// Centroid bounds of both sides of a plane, grown through a lane mask per reference
+/// (no branch): the one accumulation [`partition_kernel`] and [`count_on_axis`] share.
+struct SideBounds {
+    lmin: Vec3A,
+    lmax: Vec3A,
+    rmin: Vec3A,
+    rmax: Vec3A,
+}
+
+impl SideBounds {
+    #[inline(always)]
+    fn new() -> Self {
+        let inf = Vec3A::splat(f32::INFINITY);
+        SideBounds {
+            lmin: inf,
+            lmax: -inf,
+            rmin: inf,
+            rmax: -inf,
+        }
+    }
+
+    /// Adds centroid `c` to the left side where `left` is set (all lanes alike), else
+    /// to the right.
+    #[inline(always)]
+    fn add(&mut self, left: BVec3A, c: Vec3A) {
+        let inf = Vec3A::splat(f32::INFINITY);
+        self.lmin = self.lmin.min(Vec3A::select(left, c, inf));
+        self.lmax = self.lmax.max(Vec3A::select(left, c, -inf));
+        self.rmin = self.rmin.min(Vec3A::select(left, inf, c));
+        self.rmax = self.rmax.max(Vec3A::select(left, -inf, c));
+    }
+
+    /// The left and right centroid boxes.
+    #[inline(always)]
+    fn boxes(self) -> (BBox, BBox) {
+        (
+            BBox {
+                min: self.lmin,
+                max: self.lmax,
+            },
+            BBox {
+                min: self.rmin,
+                max: self.rmax,
+            },
+        )
+    }
+}
+
 /// Writes the references of `src` left of the plane to `left` from its start in
 /// order, the others to `right` from its end backwards, and gathers both sides'
 /// centroid bounds. Every reference is stored once, to whichever of the two next
@@ -771,8 +819,7 @@ unsafe fn partition_kernel<const AXIS: usize>(
     right_end: *mut PrimRef,
     p: Plane,
 ) -> (usize, BBox, BBox) {
-    let inf = Vec3A::splat(f32::INFINITY);
-    let (mut lmin, mut lmax, mut rmin, mut rmax) = (inf, -inf, inf, -inf);
+    let mut sides = SideBounds::new();
     let (mut nl, mut nr) = (0usize, 0usize);
     let bin = Vec3A::splat(p.bin);
     for r in src {
@@ -789,23 +836,10 @@ unsafe fn partition_kernel<const AXIS: usize>(
         unsafe { at.write(*r) };
         nl += usize::from(is_left);
         nr += usize::from(!is_left);
-        let m = Vec3A::splat(k).cmplt(bin);
-        lmin = lmin.min(Vec3A::select(m, c, inf));
-        lmax = lmax.max(Vec3A::select(m, c, -inf));
-        rmin = rmin.min(Vec3A::select(m, inf, c));
-        rmax = rmax.max(Vec3A::select(m, -inf, c));
+        sides.add(Vec3A::splat(k).cmplt(bin), c);
     }
-    (
-        nl,
-        BBox {
-            min: lmin,
-            max: lmax,
-        },
-        BBox {
-            min: rmin,
-            max: rmax,
-        },
-    )
+    let (l, r) = sides.boxes();
+    (nl, l, r)
 }
 
 /// [`partition_kernel`] for the split axis of `s`.
@@ -832,31 +866,17 @@ unsafe fn partition_on_axis(
 /// Counts the references of `src` left of the plane and gathers both sides' centroid
 /// bounds (the parallel partition's first pass).
 fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, BBox) {
-    let inf = Vec3A::splat(f32::INFINITY);
-    let (mut lmin, mut lmax, mut rmin, mut rmax) = (inf, -inf, inf, -inf);
+    let mut sides = SideBounds::new();
     let mut nl = 0usize;
     let bin = Vec3A::splat(p.bin);
     for r in src {
         let c = r.centroid();
         let k = p.coord(lane::<AXIS>(c));
         nl += usize::from(k < p.bin);
-        let m = Vec3A::splat(k).cmplt(bin);
-        lmin = lmin.min(Vec3A::select(m, c, inf));
-        lmax = lmax.max(Vec3A::select(m, c, -inf));
-        rmin = rmin.min(Vec3A::select(m, inf, c));
-        rmax = rmax.max(Vec3A::select(m, -inf, c));
+        sides.add(Vec3A::splat(k).cmplt(bin), c);
     }
-    (
-        nl,
-        BBox {
-            min: lmin,
-            max: lmax,
-        },
-        BBox {
-            min: rmin,
-            max: rmax,
-        },
-    )
+    let (l, r) = sides.boxes();
+    (nl, l, r)
 }
 
 /// Writes the references of `src` whose centroid bin is below the split bin to the
