@@ -1,6 +1,13 @@
-//! Deterministic generators shared by the integration tests: random numbers, rays and
-//! primitive sets that need no files.
+//! Shared by the integration tests: deterministic generators (random numbers, rays and
+//! primitive sets that need no files), scratch directories (`temp_dir`) and the binary
+//! under test (`bin`, `run`).
 #![allow(dead_code)]
+
+mod bin;
+mod temp;
+
+pub use bin::{BIN, bin, run};
+pub use temp::{temp_dir, write};
 
 use glam::Vec3;
 use packet_render::accel::Triangles;
