@@ -1,13 +1,10 @@
 //! Shared by the integration tests: deterministic generators (random numbers, rays and
-//! primitive sets that need no files), scratch directories (`temp_dir`) and the binary
-//! under test (`bin`, `run`).
+//! primitive sets that need no files), scratch directories (`temp::temp_dir`,
+//! `temp::write`) and the binary under test (`bin::bin`, `bin::run`).
 #![allow(dead_code)]
 
-mod bin;
-mod temp;
-
-pub use bin::{BIN, bin, run};
-pub use temp::{temp_dir, write};
+pub mod bin;
+pub mod temp;
 
 use glam::Vec3;
 use packet_render::accel::Triangles;

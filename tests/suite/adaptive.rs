@@ -3,7 +3,7 @@
 //! whatever the thread count, samples where the error is, and the CLI's
 //! `--time-limit` keeps to its limit while writing a valid image every pass.
 
-use crate::common::temp_dir;
+use crate::common::temp::temp_dir;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::{Film, luminance};
 use packet_render::integrator::adaptive::{self, AdaptiveOptions, AdaptiveOutput};
@@ -268,7 +268,7 @@ fn cli_time_limit_writes_an_image_within_the_limit() {
     let out = dir.join("progressive.png");
     let s = scene("dof_area.toml").display().to_string();
     let t = Instant::now();
-    let o = crate::common::run(&[
+    let o = crate::common::bin::run(&[
         "render",
         &s,
         "-o",
@@ -329,7 +329,7 @@ fn cli_time_limit_writes_an_image_within_the_limit() {
             "8",
         ];
         all.extend(args);
-        let o = crate::common::run(&all);
+        let o = crate::common::bin::run(&all);
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success());
         assert!(stderr.contains(needle), "{stderr}");

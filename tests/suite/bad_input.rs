@@ -3,7 +3,8 @@
 //! must exit non-zero with a message naming the file (and line where there is one),
 //! and write nothing: no image and no temporary file.
 
-use crate::common::{BIN, bin, temp_dir, write};
+use crate::common::bin::{BIN, bin};
+use crate::common::temp::{temp_dir, write};
 use std::path::Path;
 use std::process::Command;
 

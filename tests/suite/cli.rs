@@ -1,7 +1,8 @@
 //! The `packet-render` binary as a user meets it: renders, stats, bench output, and
 //! bad input that exits non-zero with a located message and writes nothing.
 
-use crate::common::{bin, run, temp_dir};
+use crate::common::bin::{bin, run};
+use crate::common::temp::temp_dir;
 use std::path::Path;
 use std::process::{Command, Output};
 

@@ -2,7 +2,8 @@
 //! `--exposure`/`--tonemap` on PNG, a `.ply` mesh rendered end to end, and the errors
 //! for combinations that cannot work (refused before any work, nothing written).
 
-use crate::common::{run, temp_dir};
+use crate::common::bin::run;
+use crate::common::temp::temp_dir;
 use std::path::Path;
 use std::process::Output;
 

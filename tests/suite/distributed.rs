@@ -3,7 +3,8 @@
 //! renders, with either integrator and any thread count; merge refuses parts that
 //! overlap, leave pixels or samples out, come from another setup, or are corrupt.
 
-use crate::common::{run, temp_dir};
+use crate::common::bin::run;
+use crate::common::temp::temp_dir;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::merge::merge;
 use packet_render::film::partial::{PartialHeader, PartialImage};

@@ -5,7 +5,8 @@
 
 use crate::common;
 
-use common::{Rng, temp_dir};
+use common::Rng;
+use common::temp::temp_dir;
 use glam::Vec3;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::Film;

@@ -1,7 +1,7 @@
 //! Loading scenes: the shipped scenes parse, generators produce what they promise, and
 //! every kind of bad input gives an `Error::Input` at the right line (and column).
 
-use crate::common::{temp_dir, write};
+use crate::common::temp::{temp_dir, write};
 use glam::Vec3;
 use packet_render::Error;
 use packet_render::scene::load::{load_obj, load_obj_scene, load_scene, parse_toml_scene};

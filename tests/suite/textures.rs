@@ -3,7 +3,7 @@
 //! with known answers (a textured quad against plain quads of the texel colours, a
 //! cut-out quad in front of a red one), on both integrators and every structure.
 
-use crate::common::{temp_dir, write};
+use crate::common::temp::{temp_dir, write};
 use glam::{Vec2, Vec3};
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::srgb_to_linear;

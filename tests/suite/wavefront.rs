@@ -2,7 +2,8 @@
 //! scene, distribution effects included, at 1 and 2 threads), and a scene pays only for
 //! the queues and stages it needs, as `--stats-json` of the real binary shows.
 
-use crate::common::{bin, temp_dir};
+use crate::common::bin::bin;
+use crate::common::temp::temp_dir;
 use packet_render::accel::{AccelKind, Primitives, SceneAccel, Triangles};
 use packet_render::geometry::RayQuery;
 use packet_render::integrator::{RenderOptions, recursive, wavefront};
