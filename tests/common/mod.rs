@@ -1,6 +1,10 @@
-//! Deterministic generators shared by the integration tests: random numbers, rays and
-//! primitive sets that need no files.
+//! Shared by the integration tests: deterministic generators (random numbers, rays and
+//! primitive sets that need no files), scratch directories (`temp::temp_dir`,
+//! `temp::write`) and the binary under test (`bin::bin`, `bin::run`).
 #![allow(dead_code)]
+
+pub mod bin;
+pub mod temp;
 
 use glam::Vec3;
 use packet_render::accel::Triangles;

@@ -3,6 +3,7 @@
 //! whatever the thread count, samples where the error is, and the CLI's
 //! `--time-limit` keeps to its limit while writing a valid image every pass.
 
+use crate::common::temp::temp_dir;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::{Film, luminance};
 use packet_render::integrator::adaptive::{self, AdaptiveOptions, AdaptiveOutput};
@@ -10,7 +11,6 @@ use packet_render::integrator::{RenderOptions, SamplerKind, recursive};
 use packet_render::scene::Scene;
 use packet_render::scene::load::load_scene;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 fn scene(name: &str) -> PathBuf {
@@ -255,13 +255,6 @@ fn passes_are_deterministic_and_stop_at_the_target_error() {
     assert!(out1.passes.windows(2).all(|w| w[1].samples > w[0].samples));
 }
 
-fn bin(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_packet-render"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
 /// `--time-limit 2` on a slow scene (dof_area at 640 x 480 with 16 shadow points per
 /// hit: 7.1 s of wall time for its full sample count, test-profile binary, 2 threads)
 /// stops early and writes a complete image, atomically. What is asserted is that the
@@ -271,13 +264,11 @@ fn bin(args: &[&str]) -> std::process::Output {
 /// measured in docs/progressive.md.
 #[test]
 fn cli_time_limit_writes_an_image_within_the_limit() {
-    let dir = std::env::temp_dir().join(format!("packet-render-adaptive-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_dir("time-limit");
     let out = dir.join("progressive.png");
     let s = scene("dof_area.toml").display().to_string();
     let t = Instant::now();
-    let o = bin(&[
+    let o = crate::common::bin::run(&[
         "render",
         &s,
         "-o",
@@ -338,7 +329,7 @@ fn cli_time_limit_writes_an_image_within_the_limit() {
             "8",
         ];
         all.extend(args);
-        let o = bin(&all);
+        let o = crate::common::bin::run(&all);
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success());
         assert!(stderr.contains(needle), "{stderr}");

@@ -3,15 +3,10 @@
 //! must exit non-zero with a message naming the file (and line where there is one),
 //! and write nothing: no image and no temporary file.
 
-use std::path::{Path, PathBuf};
+use crate::common::bin::{BIN, bin};
+use crate::common::temp::{temp_dir, write};
+use std::path::Path;
 use std::process::Command;
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("packet-render-bad-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn entries(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
@@ -27,7 +22,7 @@ fn entries(dir: &Path) -> Vec<String> {
 fn assert_fails(dir: &Path, scene: &Path, extra: &[&str], expect: &str) {
     let before = entries(dir);
     let out = dir.join("out.png");
-    let o = Command::new(env!("CARGO_BIN_EXE_packet-render"))
+    let o = bin()
         .arg("render")
         .arg(scene)
         .arg("-o")
@@ -48,15 +43,9 @@ fn assert_fails(dir: &Path, scene: &Path, extra: &[&str], expect: &str) {
     );
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
 #[test]
 fn directories_where_files_are_expected() {
-    let dir = tmp_dir("dirs");
+    let dir = temp_dir("dirs");
     let scene_dir = dir.join("scene.toml");
     std::fs::create_dir(&scene_dir).unwrap();
     assert_fails(&dir, &scene_dir, &[], "scene.toml");
@@ -75,7 +64,7 @@ fn directories_where_files_are_expected() {
     std::fs::create_dir(dir.join("out.png")).unwrap();
     assert_fails(&dir, &s, &[], "out.png");
     // ... and so is writing into a directory that does not exist.
-    let o = Command::new(env!("CARGO_BIN_EXE_packet-render"))
+    let o = bin()
         .args(["render", s.to_str().unwrap(), "-q", "-o"])
         .arg(dir.join("no-such-dir").join("x.png"))
         .output()
@@ -92,7 +81,7 @@ fn directories_where_files_are_expected() {
 #[test]
 fn unreadable_scene_file() {
     use std::os::unix::fs::PermissionsExt;
-    let dir = tmp_dir("perm");
+    let dir = temp_dir("perm");
     let s = write(
         &dir,
         "s.toml",
@@ -107,7 +96,7 @@ fn unreadable_scene_file() {
         let before = entries(&dir);
         let o = Command::new(&prefix[0])
             .args(&prefix[1..])
-            .arg(env!("CARGO_BIN_EXE_packet-render"))
+            .arg(BIN)
             .arg("render")
             .arg(&s)
             .arg("-o")
@@ -147,7 +136,7 @@ fn unprivileged_prefix() -> Option<Vec<String>> {
     .to_vec();
     let ok = Command::new(&prefix[0])
         .args(&prefix[1..])
-        .arg(env!("CARGO_BIN_EXE_packet-render"))
+        .arg(BIN)
         .arg("--version")
         .output()
         .is_ok_and(|o| o.status.success());
@@ -156,7 +145,7 @@ fn unprivileged_prefix() -> Option<Vec<String>> {
 
 #[test]
 fn values_that_overflow_to_infinity() {
-    let dir = tmp_dir("overflow");
+    let dir = temp_dir("overflow");
     // 1e39 parses to an f32 infinity.
     let obj = write(&dir, "big.obj", "v 1e39 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     assert_fails(&dir, &obj, &[], "big.obj:1");
@@ -187,7 +176,7 @@ fn values_that_overflow_to_infinity() {
 
 #[test]
 fn malformed_obj_records() {
-    let dir = tmp_dir("obj");
+    let dir = temp_dir("obj");
     for (name, text, expect) in [
         ("noverts.obj", "f 1 2 3\n", "noverts.obj:1"),
         ("neg.obj", "v 0 0 0\nv 1 0 0\nf -1 -2 -5\n", "neg.obj:3"),
@@ -205,7 +194,7 @@ fn malformed_obj_records() {
     // any unknown record; with no face left this used to fail only for "no triangles",
     // and is now an empty mesh rendered with warnings (issue 13).
     let p = write(&dir, "utf8.obj", "v 0 0 0\n\u{0}\u{ff}");
-    let o = Command::new(env!("CARGO_BIN_EXE_packet-render"))
+    let o = bin()
         .arg("render")
         .arg(&p)
         .arg("-o")

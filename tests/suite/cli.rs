@@ -1,23 +1,10 @@
 //! The `packet-render` binary as a user meets it: renders, stats, bench output, and
 //! bad input that exits non-zero with a located message and writes nothing.
 
-use std::path::{Path, PathBuf};
+use crate::common::bin::{bin, run};
+use crate::common::temp::temp_dir;
+use std::path::Path;
 use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_packet-render"))
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("packet-render-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("binary runs")
-}
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -33,7 +20,7 @@ fn scene(name: &str) -> String {
 
 #[test]
 fn renders_a_shipped_scene_with_stats() {
-    let dir = tmp_dir("render");
+    let dir = temp_dir("render");
     let out = dir.join("w.png");
     let json = dir.join("w.json");
     let o = run(&[
@@ -86,7 +73,7 @@ fn renders_a_shipped_scene_with_stats() {
 
 #[test]
 fn images_are_identical_at_any_thread_count() {
-    let dir = tmp_dir("threads");
+    let dir = temp_dir("threads");
     let mut bytes = Vec::new();
     for t in ["1", "2"] {
         let out = dir.join(format!("t{t}.png"));
@@ -140,7 +127,7 @@ fn assert_fails(args: &[&str], out: &Path, expect: &str) {
 
 #[test]
 fn bad_input_gives_located_errors_and_writes_nothing() {
-    let dir = tmp_dir("bad");
+    let dir = temp_dir("bad");
     let out = dir.join("never.png");
     let missing = dir.join("missing.toml");
     assert_fails(&[missing.to_str().unwrap()], &out, "missing.toml");
@@ -288,7 +275,7 @@ fn accel_compare_prints_one_json_row_per_structure_with_equal_checksums() {
 
 #[test]
 fn render_accepts_the_spatial_structures() {
-    let dir = tmp_dir("spatial");
+    let dir = temp_dir("spatial");
     for accel in ["grid", "octree", "kdtree"] {
         let out = dir.join(format!("{accel}.png"));
         let o = run(&[
@@ -313,7 +300,7 @@ fn render_accepts_the_spatial_structures() {
 /// a temporary file (the handler removes writes in progress; see film::output).
 #[test]
 fn interrupted_render_leaves_no_image_and_no_temp_file() {
-    let dir = tmp_dir("sigint");
+    let dir = temp_dir("sigint");
     let out = dir.join("slow.png");
     let mut child = bin()
         .args([
@@ -374,7 +361,7 @@ fn precision_prints_one_json_row_per_case_and_kernel() {
 
 #[test]
 fn threads_above_the_cap_are_refused_before_work() {
-    let dir = tmp_dir("threads");
+    let dir = temp_dir("threads");
     let out = dir.join("t.png");
     // Used to run for 16 minutes and then panic setting up 100000 thread stacks.
     assert_fails(
@@ -388,7 +375,7 @@ fn threads_above_the_cap_are_refused_before_work() {
 
 #[test]
 fn sample_products_are_validated_before_work() {
-    let dir = tmp_dir("products");
+    let dir = temp_dir("products");
     let out = dir.join("p.png");
     let dof = scene("dof_area.toml");
     // 65536 x 1024 camera rays per pixel: aborted on a failed 2.4 GB allocation (134)
@@ -432,7 +419,7 @@ fn sample_products_are_validated_before_work() {
 
 #[test]
 fn output_paths_are_checked_before_loading() {
-    let dir = tmp_dir("outputs");
+    let dir = temp_dir("outputs");
     let whitted = scene("whitted.toml");
     // A missing scene *and* a missing output directory: the output is named, so it
     // was checked before the scene was even read (and long before rendering).
@@ -485,7 +472,7 @@ fn output_paths_are_checked_before_loading() {
 
 #[test]
 fn scenes_where_nothing_can_be_hit_render_with_a_warning() {
-    let dir = tmp_dir("empty");
+    let dir = temp_dir("empty");
     for (name, text, warning) in [
         ("empty.obj", "", "no primitives"),
         ("verts.obj", "v 0 0 0\nv 1 0 0\n", "no primitives"),
@@ -529,7 +516,7 @@ fn scenes_where_nothing_can_be_hit_render_with_a_warning() {
 /// 8 bits, so a one-ulp camera difference would show in most pixels' mantissas).
 #[test]
 fn camera_flags_reproduce_a_toml_camera_bit_for_bit() {
-    let dir = tmp_dir("camera-flags");
+    let dir = temp_dir("camera-flags");
     let toml = dir.join("cam.toml");
     std::fs::write(
         &toml,
@@ -572,7 +559,7 @@ fn camera_flags_reproduce_a_toml_camera_bit_for_bit() {
 
 #[test]
 fn bad_camera_flags_are_refused_before_work() {
-    let dir = tmp_dir("camera-bad");
+    let dir = temp_dir("camera-bad");
     let out = dir.join("never.png");
     let s = scene("whitted.toml");
     assert_fails(
@@ -625,7 +612,7 @@ fn bad_camera_flags_are_refused_before_work() {
 
 #[test]
 fn ortho_flag_matches_the_toml_orthographic_camera() {
-    let dir = tmp_dir("camera-ortho");
+    let dir = temp_dir("camera-ortho");
     let body = "[render]\nwidth = 32\nheight = 24\nspp = 1\nmax_depth = 3\n\n[[generator]]\ntype = \"whitted_room\"\n";
     let plain = dir.join("plain.toml");
     std::fs::write(&plain, body).unwrap();

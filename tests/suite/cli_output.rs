@@ -2,25 +2,10 @@
 //! `--exposure`/`--tonemap` on PNG, a `.ply` mesh rendered end to end, and the errors
 //! for combinations that cannot work (refused before any work, nothing written).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_packet-render"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "packet-render-cli-output-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use crate::common::bin::run;
+use crate::common::temp::temp_dir;
+use std::path::Path;
+use std::process::Output;
 
 fn scene(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -51,7 +36,7 @@ fn render(scene: &str, out: &Path, extra: &[&str]) -> Output {
 #[test]
 fn exr_half_with_aovs_has_ten_half_channels() {
     use exr::prelude::FlatSamples;
-    let dir = tmp_dir("aovs");
+    let dir = temp_dir("aovs");
     let out = dir.join("w.exr");
     let o = render(&scene("whitted.toml"), &out, &["--exr-half", "--aovs"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -83,7 +68,7 @@ fn exr_half_with_aovs_has_ten_half_channels() {
 
 #[test]
 fn exposure_changes_png_but_not_exr() {
-    let dir = tmp_dir("exposure");
+    let dir = temp_dir("exposure");
     let (a, b) = (dir.join("a.png"), dir.join("b.png"));
     let (c, d) = (dir.join("c.exr"), dir.join("d.exr"));
     let s = scene("whitted.toml");
@@ -104,7 +89,7 @@ fn exposure_changes_png_but_not_exr() {
 
 #[test]
 fn ply_mesh_renders_and_bad_combinations_are_refused_before_work() {
-    let dir = tmp_dir("ply");
+    let dir = temp_dir("ply");
     let ply = dir.join("tri.ply");
     std::fs::write(
         &ply,

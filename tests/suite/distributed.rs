@@ -3,6 +3,8 @@
 //! renders, with either integrator and any thread count; merge refuses parts that
 //! overlap, leave pixels or samples out, come from another setup, or are corrupt.
 
+use crate::common::bin::run;
+use crate::common::temp::temp_dir;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::merge::merge;
 use packet_render::film::partial::{PartialHeader, PartialImage};
@@ -14,7 +16,6 @@ use packet_render::scene::Scene;
 use packet_render::scene::load::load_scene;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 fn scene(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -236,29 +237,12 @@ fn merge_refuses_bad_sets_of_parts_naming_the_files() {
     assert!(refused(vec![]).contains("no parts"));
 }
 
-fn bin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_packet-render"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "packet-render-distributed-{}-{name}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 /// The commands a scheduler's tasks run: `render --tile I/N --sample-range` to
 /// `.partial` files, then `merge`. The merged sums are byte for byte those of one
 /// `render -o full.partial`, and the merged PNG is that render's PNG.
 #[test]
 fn cli_tiles_and_rounds_merge_to_the_single_render() {
-    let dir = tmp_dir("cli");
+    let dir = temp_dir("cli");
     let s = scene("dof_area.toml").display().to_string();
     let common = [
         "--width",
@@ -278,7 +262,7 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
             args.extend_from_slice(&["--seed", "5"]);
         }
         args.extend_from_slice(extra);
-        let o = bin(&args);
+        let o = run(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     };
     render(&dir.join("full.partial"), &[]);
@@ -296,7 +280,7 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
         args.extend(parts.iter().cloned());
         args.extend(["-o".into(), dir.join(out).display().to_string()]);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        let o = bin(&args);
+        let o = run(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let read = |n: &str| std::fs::read(dir.join(n)).unwrap();
@@ -311,7 +295,7 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
 
     // Refusals exit non-zero, name the file, and write nothing.
     let refused = |args: &[&str], needle: &str| {
-        let o = bin(args);
+        let o = run(args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(
             !o.status.success() && err.contains(needle),
@@ -375,7 +359,7 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
         let mut args = vec!["render", &s, "-o", &png];
         args.extend_from_slice(&common);
         args.extend_from_slice(extra);
-        let o = bin(&args);
+        let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(
             !o.status.success() && err.contains(needle),

@@ -6,6 +6,7 @@
 use crate::common;
 
 use common::Rng;
+use common::temp::temp_dir;
 use glam::Vec3;
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::Film;
@@ -13,7 +14,7 @@ use packet_render::integrator::{IntegratorKind, RenderOptions};
 use packet_render::scene::load::parse_toml_scene;
 use packet_render::scene::{Environment, Scene, uv_to_direction};
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A 32 x 16 test map: a bright band, a dim gradient, random texels and a few black
 /// ones (which the sampler must never pick).
@@ -281,12 +282,6 @@ fn write_hdr(path: &Path, w: usize, h: usize, texels: &[Vec3]) {
     image::codecs::hdr::HdrEncoder::new(file)
         .encode(&pixels, w, h)
         .unwrap();
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("packet-render-env-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn render(scene: &Scene, integrator: IntegratorKind, opts: &RenderOptions) -> Film {

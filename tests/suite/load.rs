@@ -1,6 +1,7 @@
 //! Loading scenes: the shipped scenes parse, generators produce what they promise, and
 //! every kind of bad input gives an `Error::Input` at the right line (and column).
 
+use crate::common::temp::{temp_dir, write};
 use glam::Vec3;
 use packet_render::Error;
 use packet_render::scene::load::{load_obj, load_obj_scene, load_scene, parse_toml_scene};
@@ -8,25 +9,6 @@ use packet_render::scene::procedural::{sphereflake, sphereflake_count, tessellat
 use packet_render::scene::{Light, Scene, SceneBuilder};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-/// A fresh directory under the system temp dir, unique per test and process.
-fn temp_dir(tag: &str) -> PathBuf {
-    static N: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "packet-render-load-{}-{}-{tag}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn write(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, contents).unwrap();
-    p
-}
 
 /// Asserts an `Error::Input` in `file` at `line` (and `column` if given) whose message
 /// contains `needle`.

@@ -3,6 +3,7 @@
 //! with known answers (a textured quad against plain quads of the texel colours, a
 //! cut-out quad in front of a red one), on both integrators and every structure.
 
+use crate::common::temp::{temp_dir, write};
 use glam::{Vec2, Vec3};
 use packet_render::accel::{AccelKind, SceneAccel};
 use packet_render::film::srgb_to_linear;
@@ -11,24 +12,6 @@ use packet_render::scene::Scene;
 use packet_render::scene::load::{load_obj, load_ply, load_scene, parse_toml_scene};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-fn temp_dir(tag: &str) -> PathBuf {
-    static N: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "packet-render-textures-{}-{}-{tag}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn write(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, contents).unwrap();
-    p
-}
 
 /// Writes an RGBA PNG of `w x h` texels from a function of the texel.
 fn png(dir: &Path, name: &str, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> PathBuf {

@@ -215,15 +215,14 @@ fn toml_key_sets_it_and_the_default_is_on() {
 /// traces none again and the image changes.
 #[test]
 fn cli_flag_switches_it() {
-    let dir = std::env::temp_dir().join(format!("packet-render-tshadow-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::temp::temp_dir("cli");
     let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitted.toml");
     let run = |tag: &str, extra: &[&str]| {
         let (png, json) = (
             dir.join(format!("{tag}.png")),
             dir.join(format!("{tag}.json")),
         );
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_packet-render"))
+        let o = crate::common::bin::bin()
             .args([
                 "render",
                 scene.to_str().unwrap(),

@@ -2,13 +2,14 @@
 //! scene, distribution effects included, at 1 and 2 threads), and a scene pays only for
 //! the queues and stages it needs, as `--stats-json` of the real binary shows.
 
+use crate::common::bin::bin;
+use crate::common::temp::temp_dir;
 use packet_render::accel::{AccelKind, Primitives, SceneAccel, Triangles};
 use packet_render::geometry::RayQuery;
 use packet_render::integrator::{RenderOptions, recursive, wavefront};
 use packet_render::scene::Scene;
 use packet_render::scene::load::load_scene;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn scenes() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
@@ -187,15 +188,9 @@ fn stats(scene: &str) -> serde_json::Value {
 
 /// `--stats-json` of a 32x24, 1 spp wavefront render of `scene`, with `extra` flags.
 fn stats_with(scene: &str, extra: &[&str]) -> serde_json::Value {
-    let dir = std::env::temp_dir().join(format!(
-        "packet-render-wavefront-{}-{}-{}",
-        std::process::id(),
-        scene.replace('.', "_"),
-        extra.len()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = temp_dir(&scene.replace('.', "_"));
     let json = dir.join("stats.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_packet-render"))
+    let o = bin()
         .args([
             "render",
             Path::new(env!("CARGO_MANIFEST_DIR"))
