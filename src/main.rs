@@ -25,8 +25,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene (.toml) or a mesh (.obj, framed automatically) to an image
-    /// (.png, or .hdr for linear float).
+    /// Render a scene (.toml) or a mesh (.obj or .ply, framed automatically) to an image
+    /// (.png; .hdr or .exr for linear float; .partial for a part that `merge` assembles).
     Render(RenderArgs),
     /// Time the ray-throughput protocol of shared/BENCHMARK.md (Mrays/s for primary,
     /// shadow and diffuse rays) for each tracing mode, at 1 thread and all cores.
@@ -177,7 +177,7 @@ struct LectureTableArgs {
 
 #[derive(clap::Args)]
 struct BenchArgs {
-    /// OBJ mesh (default: the procedural Bunny-scale mesh of 69,451 triangles).
+    /// OBJ mesh (default: the procedural Bunny-scale mesh, 69,696 triangles: the tessellation nearest the Bunny's 69,451).
     #[arg(long)]
     mesh: Option<PathBuf>,
     /// The procedural mesh (a bumpy sphere) with about this many triangles instead.
