@@ -1,0 +1,125 @@
+//! [`Film`]: the frame as linear RGB per pixel, with its error metrics.
+
+use super::color::linear_to_srgb8;
+use crate::error::{Error, Result};
+use glam::Vec3;
+
+/// Linear RGB radiance per pixel, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl Film {
+    pub fn new(width: u32, height: u32) -> Self {
+        Film {
+            width,
+            height,
+            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[self.index(x, y)]
+    }
+
+    pub fn set(&mut self, x: u32, y: u32, value: Vec3) {
+        let i = self.index(x, y);
+        self.pixels[i] = value;
+    }
+
+    #[inline]
+    fn index(&self, x: u32, y: u32) -> usize {
+        y as usize * self.width as usize + x as usize
+    }
+
+    /// 8-bit sRGB, three bytes per pixel, row 0 first: each channel clamped to [0, 1]
+    /// and encoded with the sRGB OETF (IEC 61966-2-1), not a plain 2.2 gamma, so that
+    /// dark tones keep the linear toe the standard specifies.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        self.pixels
+            .iter()
+            .flat_map(|p| p.to_array())
+            .map(linear_to_srgb8)
+            .collect()
+    }
+
+    /// Mean radiance over all pixels (zero for an empty film).
+    pub fn mean(&self) -> Vec3 {
+        if self.pixels.is_empty() {
+            return Vec3::ZERO;
+        }
+        let sum = self
+            .pixels
+            .iter()
+            .fold(glam::DVec3::ZERO, |acc, p| acc + p.as_dvec3());
+        (sum / self.pixels.len() as f64).as_vec3()
+    }
+
+    /// Root-mean-square difference over every channel of every pixel, in f64 so that
+    /// the sum of many small squares does not lose digits. Films of different sizes are
+    /// an error, not a number.
+    pub fn rmse(&self, other: &Film) -> Result<f64> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(Error::parameter(
+                "film",
+                format!(
+                    "cannot compare a {}x{} film with a {}x{} film",
+                    self.width, self.height, other.width, other.height
+                ),
+            ));
+        }
+        if self.pixels.is_empty() {
+            return Ok(0.0);
+        }
+        let sum: f64 = self
+            .pixels
+            .iter()
+            .zip(&other.pixels)
+            .map(|(a, b)| (a.as_dvec3() - b.as_dvec3()).length_squared())
+            .sum();
+        Ok((sum / (3 * self.pixels.len()) as f64).sqrt())
+    }
+
+    /// Peak signal-to-noise ratio in dB against a peak of 1.0 (display white in linear
+    /// radiance); `+inf` for identical films.
+    pub fn psnr(&self, other: &Film) -> Result<f64> {
+        let rmse = self.rmse(other)?;
+        Ok(if rmse == 0.0 {
+            f64::INFINITY
+        } else {
+            -20.0 * rmse.log10()
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::film::luminance;
+
+    #[test]
+    fn error_metrics() {
+        let mut a = Film::new(4, 3);
+        a.set(1, 2, Vec3::new(0.5, 0.25, 1.0));
+        assert_eq!(a.rmse(&a).unwrap(), 0.0);
+        assert_eq!(a.psnr(&a).unwrap(), f64::INFINITY);
+        let mut b = a.clone();
+        // One channel of one pixel off by 0.6: rmse = sqrt(0.36 / 36) = 0.1, PSNR 20 dB.
+        b.set(0, 0, Vec3::new(0.6, 0.0, 0.0));
+        assert!((a.rmse(&b).unwrap() - 0.1).abs() < 1e-7);
+        assert!((a.psnr(&b).unwrap() - 20.0).abs() < 1e-5);
+        assert!(a.rmse(&Film::new(3, 4)).is_err());
+    }
+
+    #[test]
+    fn mean_and_luminance() {
+        let mut f = Film::new(2, 1);
+        f.set(0, 0, Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(f.mean(), Vec3::new(0.5, 1.0, 1.5));
+        assert!((luminance(Vec3::ONE) - 1.0).abs() < 1e-6);
+        assert_eq!(Film::new(0, 0).mean(), Vec3::ZERO);
+    }
+}
