@@ -18,6 +18,7 @@ pub mod lanes3;
 pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
+pub mod specular;
 pub mod quant;
 pub mod surface;
 
