@@ -22,9 +22,9 @@ use super::shadow::material_of;
 use crate::accel::{PrimRef, SceneHit};
 use crate::geometry::Ray;
 use crate::scene::{Scene, TriangleMesh};
+use crate::simd::Lanes;
 use crate::simd::Packet;
 use crate::simd::lanes3::V3;
-use crate::simd::Lanes;
 use crate::simd::surface::{
     SphereHits, Surfaces, TriangleHits, sphere_surfaces, triangle_surfaces,
 };
@@ -192,8 +192,14 @@ impl HitBatch {
             } else if spheres != 0 && triangles == 0 {
                 self.put(k0, &sphere_surfaces(&sg.lanes()));
             } else if lanes != 0 {
-                let (t, s) = (triangle_surfaces(&g.lanes(with_normals)), sphere_surfaces(&sg.lanes()));
-                self.put(k0, &Surfaces::select(Packet::mask_from_bits(spheres), &s, &t));
+                let (t, s) = (
+                    triangle_surfaces(&g.lanes(with_normals)),
+                    sphere_surfaces(&sg.lanes()),
+                );
+                self.put(
+                    k0,
+                    &Surfaces::select(Packet::mask_from_bits(spheres), &s, &t),
+                );
             }
             for l in 0..m {
                 let k = k0 + l;
@@ -466,7 +472,10 @@ mod tests {
              hits in lanes, {other} others; {mixed} lane groups of both",
             paths.len()
         );
-        assert!(mixed > 0, "no lane group held both a triangle and a sphere hit");
+        assert!(
+            mixed > 0,
+            "no lane group held both a triangle and a sphere hit"
+        );
         assert!(paths.len() >= 10, "{} shipped scenes", paths.len());
         assert!(
             grouped >= 3,

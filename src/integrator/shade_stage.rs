@@ -21,6 +21,7 @@
 
 use super::hit_batch::HitBatch;
 use super::path_keys::HitSet;
+use super::path_keys::child_path;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::sobol::SobolDim;
@@ -34,7 +35,6 @@ use crate::simd::direct_light::{
 };
 use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
 use crate::simd::specular;
-use super::path_keys::child_path;
 use crate::stats::{EffectSamplesDrawn, RayCounts};
 use glam::Vec3;
 

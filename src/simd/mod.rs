@@ -18,8 +18,8 @@ pub mod lanes3;
 pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
-pub mod specular;
 pub mod quant;
+pub mod specular;
 pub mod surface;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};

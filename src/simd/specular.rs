@@ -156,7 +156,11 @@ mod tests {
                 let s = (g + tilt * Vec3::new(r(), r(), r())).normalize_or(g);
                 let s = if s.dot(g) < 0.0 { -s } else { s };
                 (d[l], ng[l], ns[l]) = (dir, g, s);
-                front[l] = if r() < 0.0 { f32::from_bits(u32::MAX) } else { 0.0 };
+                front[l] = if r() < 0.0 {
+                    f32::from_bits(u32::MAX)
+                } else {
+                    0.0
+                };
             }
             let (dl, nsl, ngl) = (v3(&d), v3(&ns), v3(&ng));
             let fl = Packet::new(front);
@@ -168,9 +172,8 @@ mod tests {
             );
             for l in 0..16 {
                 let (d, ns, ng) = (d[l], ns[l], ng[l]);
-                let want = optics::scatter_dir(optics::reflect(d, ns), ng, || {
-                    optics::reflect(d, ng)
-                });
+                let want =
+                    optics::scatter_dir(optics::reflect(d, ns), ng, || optics::reflect(d, ng));
                 assert_eq!(bits(refl.lane(l)), bits(want), "round {round} lane {l}");
                 fallback += (optics::reflect(d, ns).dot(ng) <= 0.0) as u32;
                 let (eta_i, eta_t) = if front[l].to_bits() != 0 {
