@@ -6,9 +6,13 @@
 //! The lane path (`simd::direct_light`): checkerboard albedo, emission and ambient,
 //! and the shadow rays of every point and directional light with lanes over the hits; the shadow rays
 //! of quad lights with lanes over the light samples of one hit; all written straight
-//! into the per-light shadow queues. Child rays (mirror, glass, glossy, translucency)
-//! come from the scalar [`Shader::emit_children`], hit by hit, after the direct light,
-//! so that a shading point draws its random numbers in the scalar order. Lanes repeat
+//! into the per-light shadow queues. The child rays of mirrors and clear glass (no
+//! random numbers) are built 16 hits at a time in lanes (`simd::specular`: reflection,
+//! Schlick-Fresnel refraction, total internal reflection, both offset origins), then
+//! weighted, cut off and queued hit by hit with the scalar rules; glossy and
+//! translucent lobes come from the scalar [`Shader::emit_children`], hit by hit, after
+//! the direct light, so that a shading point draws its random numbers in the scalar
+//! order. Lanes repeat
 //! the scalar f32 operations in order: the emitted rays are bit-identical, the
 //! contributions differ only by the lane power function's error (a test checks both).
 //!
@@ -17,6 +21,7 @@
 
 use super::hit_batch::HitBatch;
 use super::path_keys::HitSet;
+use super::path_keys::child_path;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::sobol::SobolDim;
@@ -28,7 +33,8 @@ use crate::simd::direct_light::{
     Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light,
     point_light, quad_light,
 };
-use crate::simd::lanes3::V3;
+use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
+use crate::simd::specular;
 use crate::stats::{EffectSamplesDrawn, RayCounts};
 use glam::Vec3;
 
@@ -205,39 +211,78 @@ fn push_children(
     }
 }
 
+/// Per lane: the camera sample, the weight and the time of the ray that made the hit
+/// (or of the one hit whose light samples the lanes are).
+#[derive(Default)]
+struct LanePaths {
+    slot: [u32; 16],
+    weight: [[f32; 16]; 3],
+    time: [f32; 16],
+}
+
+impl LanePaths {
+    fn set(&mut self, i: usize, slot: u32, weight: Vec3, time: f32) {
+        self.slot[i] = slot;
+        (self.weight[0][i], self.weight[1][i], self.weight[2][i]) = (weight.x, weight.y, weight.z);
+        self.time[i] = time;
+    }
+
+    /// Every lane from one hit.
+    fn splat(slot: u32, weight: Vec3, time: f32) -> Self {
+        LanePaths {
+            slot: [slot; 16],
+            weight: [[weight.x; 16], [weight.y; 16], [weight.z; 16]],
+            time: [time; 16],
+        }
+    }
+
+    fn weight(&self) -> V3 {
+        V3::load(&self.weight[0], &self.weight[1], &self.weight[2])
+    }
+}
+
 /// The shadow rays of the set lanes of `s` into `q`; lane `i` belongs to the camera
-/// sample `slot(i)`, is scaled by `weight(i)` and keeps the time `time(i)`.
+/// sample `paths.slot[i]`, keeps the time `paths.time[i]`, and its contribution is
+/// scaled by `weight` (`paths`' weights as lanes; the same f32 product as the scalar
+/// `weight * contribution`). The queue's arrays are each extended once per call, from
+/// the set lanes in order.
 fn push_shadow(
     q: &mut ShadowQueue,
     s: &ShadowLanes,
-    lane: impl Fn(usize) -> (u32, Vec3, f32),
+    paths: &LanePaths,
+    weight: V3,
     rays: &mut RayCounts,
 ) {
     let mut bits = s.mask;
     if bits == 0 {
         return;
     }
+    let n = bits.count_ones() as usize;
+    let mut set = [0usize; 16];
+    for k in set.iter_mut().take(n) {
+        *k = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+    }
+    let set = &set[..n];
     let arr = |v: &V3| (v.x.to_array(), v.y.to_array(), v.z.to_array());
     let (ox, oy, oz) = arr(&s.origin);
     let (dx, dy, dz) = arr(&s.dir);
-    let (cx, cy, cz) = arr(&s.contribution);
+    let (cx, cy, cz) = arr(&s.contribution.times(weight));
     let tmax = s.tmax.to_array();
-    rays.shadow += bits.count_ones() as u64;
-    while bits != 0 {
-        let i = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        let (slot, weight, time) = lane(i);
+    rays.shadow += n as u64;
+    q.rays.extend(set.iter().map(|&i| {
         let mut ray = Ray::segment(
             Vec3::new(ox[i], oy[i], oz[i]),
             Vec3::new(dx[i], dy[i], dz[i]),
             0.0,
             tmax[i],
         );
-        ray.time = time;
-        q.rays.push(ray);
-        q.slot.push(slot);
-        q.contribution.push(weight * Vec3::new(cx[i], cy[i], cz[i]));
-    }
+        ray.time = paths.time[i];
+        ray
+    }));
+    q.slot.extend(set.iter().map(|&i| paths.slot[i]));
+    q.contribution
+        .extend(set.iter().map(|&i| Vec3::new(cx[i], cy[i], cz[i])));
 }
 
 /// One material group in lanes: local light and point lights 16 hits at a time, then
@@ -302,8 +347,13 @@ fn shade_group_lanes(
                 };
             }
         }
+        // The camera sample, weight and time of each hit's ray, gathered once for the
+        // shadow rays of every light.
+        let mut paths = LanePaths::default();
         for i in 0..n {
             let q = batch.ray[j + i] as usize;
+            let (slot, weight) = (queue.slot[q], queue.weight[q]);
+            paths.set(i, slot, weight, queue.rays[q].time);
             let a = s.albedo.lane(i);
             albedo.push(a);
             let local = if lit {
@@ -311,36 +361,30 @@ fn shade_group_lanes(
             } else {
                 m.emission
             };
-            sinks.acc[queue.slot[q] as usize] += queue.weight[q] * local;
+            sinks.acc[slot as usize] += weight * local;
         }
         if lit {
-            let lane = |i: usize| {
-                let q = batch.ray[j + i] as usize;
-                (queue.slot[q], queue.weight[q], queue.rays[q].time)
-            };
+            let weight = paths.weight();
             for &(index, position, intensity) in &lanes.points {
                 let sl = point_light(&s, &hl, position, intensity, active);
-                push_shadow(
-                    &mut sinks.shadow[index as usize],
-                    &sl,
-                    lane,
-                    &mut sinks.rays,
-                );
+                let q = &mut sinks.shadow[index as usize];
+                push_shadow(q, &sl, &paths, weight, &mut sinks.rays);
             }
             for &(index, wi, irradiance) in &lanes.directional {
                 let sl = directional_light(&s, &hl, wi, irradiance, active);
-                push_shadow(
-                    &mut sinks.shadow[index as usize],
-                    &sl,
-                    lane,
-                    &mut sinks.rays,
-                );
+                let q = &mut sinks.shadow[index as usize];
+                push_shadow(q, &sl, &paths, weight, &mut sinks.rays);
             }
         }
         j += 16;
     }
 
     let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
+    // Mirrors and clear glass draw no random numbers: their child rays are built in
+    // lanes after the loop. Glossy and translucent lobes go through the scalar shader,
+    // hit by hit, after the hit's light samples (the order of its random stream).
+    let spawns = spawns && depth < shader.max_depth;
+    let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
     let plan = &shader.plan;
     for k in range.clone() {
         let q = batch.ray[k] as usize;
@@ -363,6 +407,8 @@ fn shade_group_lanes(
                 albedo: V3::splat(albedo[k - range.start]),
             };
             let samples = plan.shadow;
+            let paths = LanePaths::splat(slot, weight, time);
+            let lane_weight = V3::splat(weight);
             for (index, quad) in &lanes.quads {
                 super::path_keys::hit_points(
                     plan.sampler,
@@ -401,13 +447,14 @@ fn shade_group_lanes(
                     push_shadow(
                         &mut sinks.shadow[*index as usize],
                         &sl,
-                        |_| (slot, weight, time),
+                        &paths,
+                        lane_weight,
                         &mut sinks.rays,
                     );
                 }
             }
         }
-        if spawns && depth < shader.max_depth {
+        if spawns && !lane_children {
             let si = batch.interaction(k, material);
             let out = &mut sinks.emitted;
             out.children.clear();
@@ -431,6 +478,93 @@ fn shade_group_lanes(
             );
             push_children(&mut sinks.next, &sinks.emitted, slot, weight);
         }
+    }
+    if lane_children {
+        specular_children(shader, m, range, batch, queue, sinks);
+    }
+}
+
+/// The child rays of the hits `range` of `batch` on the mirror or clear glass `m`
+/// (no glossy or translucent lobe), as `Shader::emit_children` emits them: the origins
+/// and directions 16 hits at a time in lanes (`simd::specular`, bit for bit the scalar
+/// optics), then per hit, in hit order, the weights, the contribution cutoff and the
+/// queue writes with the scalar rules.
+fn specular_children(
+    shader: &Shader,
+    m: &crate::scene::Material,
+    range: std::ops::Range<usize>,
+    batch: &HitBatch,
+    queue: &RayQueue,
+    sinks: &mut Sinks,
+) {
+    let mirror = m.mirror != Vec3::ZERO;
+    let transmissive = m.is_transmissive();
+    let min = shader.min_contribution;
+    let arr = |v: &V3| (v.x.to_array(), v.y.to_array(), v.z.to_array());
+    let at = |a: &([f32; 16], [f32; 16], [f32; 16]), i: usize| Vec3::new(a.0[i], a.1[i], a.2[i]);
+    let mut j = range.start;
+    while j < range.end {
+        let n = (range.end - j).min(16);
+        let (p, p_error) = (batch.p.lanes(j), batch.p_error.lanes(j));
+        let (ng, ns, d) = (batch.ng.lanes(j), batch.ns.lanes(j), batch.dir.lanes(j));
+        // Every reflected direction leaves on the facing side: one origin for them all.
+        let out = arr(&lane_offset(p, p_error, ng, ng));
+        let reflected = arr(&specular::reflection_dir(d, ns, ng));
+        let glass = transmissive.then(|| {
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
+            let g = specular::glass(d, ns, ng, front, m.ior);
+            // Refraction leaves into the far side: offset against the facing normal.
+            let inside = arr(&lane_offset(p, p_error, ng, ng.negated()));
+            (
+                g.reflectance.to_array(),
+                arr(&g.refracted),
+                g.tir.to_bitmask(),
+                inside,
+            )
+        });
+        for i in 0..n {
+            let q = batch.ray[j + i] as usize;
+            let (slot, weight, path) = (queue.slot[q], queue.weight[q], queue.path[q]);
+            let (throughput, time) = (queue.throughput[q], queue.rays[q].time);
+            let mut branch = 0;
+            let mut push = |sinks: &mut Sinks, kind: ChildKind, dir, origin, w: Vec3, tp: Vec3| {
+                let mut ray = Ray::new(origin, dir);
+                ray.time = time;
+                let q = sinks.next[kind].get_or_insert_with(RayQueue::default);
+                q.push(ray, slot, weight * w, tp, child_path(path, branch));
+                branch += 1;
+            };
+            let reflected = at(&reflected, i);
+            let out = at(&out, i);
+            if mirror {
+                let tp = throughput * m.mirror;
+                if tp.max_element() >= min {
+                    sinks.rays.reflection += 1;
+                    push(sinks, ChildKind::Reflection, reflected, out, m.mirror, tp);
+                }
+            }
+            if let Some((reflectance, refracted, tir, inside)) = &glass {
+                let f = reflectance[i];
+                if f > 0.0 {
+                    let tp = throughput * f;
+                    if tp.max_element() >= min {
+                        sinks.rays.reflection += 1;
+                        let w = Vec3::splat(f);
+                        push(sinks, ChildKind::Reflection, reflected, out, w, tp);
+                    }
+                }
+                if tir >> i & 1 == 0 {
+                    let w = (1.0 - f) * m.transmission;
+                    let tp = throughput * w;
+                    if tp.max_element() >= min && w != Vec3::ZERO {
+                        sinks.rays.refraction += 1;
+                        let (t, o) = (at(refracted, i), at(inside, i));
+                        push(sinks, ChildKind::Refraction, t, o, w, tp);
+                    }
+                }
+            }
+        }
+        j += 16;
     }
 }
 
@@ -492,8 +626,9 @@ mod tests {
     }
 
     /// Compares what the lane path and the scalar path emitted; returns the number of
-    /// shadow rays compared and how many of their contributions were not bit-equal.
-    fn compare(name: &str, lane: &Sinks, scalar: &Sinks) -> (usize, usize) {
+    /// shadow rays compared, how many of their contributions were not bit-equal, and
+    /// the number of reflected and refracted child rays compared.
+    fn compare(name: &str, lane: &Sinks, scalar: &Sinks) -> (usize, usize, [usize; 2]) {
         assert_eq!(lane.rays, scalar.rays, "{name}: ray counts");
         assert_eq!(lane.drawn, scalar.drawn, "{name}: samples drawn");
         // Emission and ambient: the same operations, bit for bit.
@@ -504,7 +639,7 @@ mod tests {
                 "{name}: local radiance of sample {slot}"
             );
         }
-        let (mut compared, mut inexact) = (0, 0);
+        let (mut compared, mut inexact, mut children) = (0, 0, [0, 0]);
         for (light, (a, b)) in lane.shadow.iter().zip(&scalar.shadow).enumerate() {
             assert_eq!(a.rays.len(), b.rays.len(), "{name}: light {light}");
             assert_eq!(a.slot, b.slot, "{name}: light {light}");
@@ -540,9 +675,14 @@ mod tests {
                 assert_eq!(a.weight, b.weight);
                 assert_eq!(a.throughput, b.throughput);
                 assert_eq!(a.path, b.path);
+                match kind {
+                    ChildKind::Reflection => children[0] += a.rays.len(),
+                    ChildKind::Refraction => children[1] += a.rays.len(),
+                    _ => {}
+                }
             }
         }
-        (compared, inexact)
+        (compared, inexact, children)
     }
 
     /// The lane path and the scalar shader shade the same hits (camera rays of every
@@ -560,6 +700,7 @@ mod tests {
             .collect();
         paths.sort();
         let (mut scenes, mut shadow_rays, mut inexact, mut quad, mut smooth) = (0, 0, 0, 0, 0);
+        let (mut reflected, mut refracted) = (0, 0);
         for path in paths {
             let name = path.display().to_string();
             let scene = load_scene(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -603,9 +744,11 @@ mod tests {
                     .filter(|m| m.to_bits() != 0)
                     .count();
                 shade_queue(&shader, None, &queue, &hits, depth, &mut b, &mut scratch);
-                let (n, x) = compare(&format!("{name} depth {depth}"), &a, &b);
+                let (n, x, c) = compare(&format!("{name} depth {depth}"), &a, &b);
                 shadow_rays += n;
                 inexact += x;
+                reflected += c[0];
+                refracted += c[1];
                 if depth < 2 {
                     for kind in ChildKind::ALL {
                         if let Some(q) = a.next[kind].take() {
@@ -617,8 +760,12 @@ mod tests {
         }
         eprintln!(
             "lane shading: {scenes} scenes, {shadow_rays} shadow rays, {inexact} contributions \
-             not bit-equal (the power), {smooth} smooth-mesh hits"
+             not bit-equal (the power), {smooth} smooth-mesh hits, {reflected} reflected and \
+             {refracted} refracted child rays"
         );
+        // Mirrors and clear glass: their children come from the lanes of
+        // `specular_children` on one side and from `emit_children` on the other.
+        assert!(reflected > 1_000 && refracted > 500);
         assert!(scenes >= 6, "{scenes} shipped scenes in the lane path");
         assert!(quad > 0, "a quad light was compared");
         assert!(smooth > 0, "a smooth-mesh hit was compared");

@@ -19,6 +19,7 @@ pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
 pub mod quant;
+pub mod specular;
 pub mod surface;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};

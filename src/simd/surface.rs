@@ -1,6 +1,7 @@
-//! Surface interactions of triangle hits over the lanes of a [`Packet`]: the lane form
-//! of `integrator::interaction::SurfaceInteraction::new` for hits on the static
-//! triangle mesh ([`triangle_surfaces`]): hit point from the barycentrics with its error
+//! Surface interactions of triangle and sphere hits over the lanes of a [`Packet`]: the
+//! lane form of `integrator::interaction::SurfaceInteraction::new` for hits on static
+//! spheres ([`sphere_surfaces`]) and on the static triangle mesh
+//! ([`triangle_surfaces`]): for triangles the hit point from the barycentrics with its error
 //! bound (pbrt-v4 §6.8.7, `triangle_point`), geometric and interpolated shading
 //! normals facing the ray, the side, and on smooth meshes the shadow-ray base point
 //! lifted onto the surface the vertex normals describe (Hanika, "Hacking the Shadow
@@ -34,11 +35,11 @@ pub struct TriangleHits {
     pub dir: V3,
 }
 
-/// What [`triangle_surfaces`] returns per lane: the fields of a `SurfaceInteraction`
+/// What [`triangle_surfaces`] and [`sphere_surfaces`] return per lane: the fields of a `SurfaceInteraction`
 /// (with `p_shadow` as `base`, `p` where there is none, and the flag `smooth`) and the
 /// unit ray direction.
 #[derive(Clone, Copy, Debug)]
-pub struct TriangleSurfaces {
+pub struct Surfaces {
     pub p: V3,
     pub p_error: V3,
     pub ng: V3,
@@ -51,6 +52,23 @@ pub struct TriangleSurfaces {
     pub front: Packet,
     /// `dir.normalize()`.
     pub dir: V3,
+}
+
+impl Surfaces {
+    /// `mask ? a : b` per lane, every field.
+    #[inline(always)]
+    pub fn select(mask: Packet, a: &Surfaces, b: &Surfaces) -> Surfaces {
+        Surfaces {
+            p: V3::select(mask, a.p, b.p),
+            p_error: V3::select(mask, a.p_error, b.p_error),
+            ng: V3::select(mask, a.ng, b.ng),
+            ns: V3::select(mask, a.ns, b.ns),
+            base: V3::select(mask, a.base, b.base),
+            smooth: mask.select(a.smooth, b.smooth),
+            front: mask.select(a.front, b.front),
+            dir: V3::select(mask, a.dir, b.dir),
+        }
+    }
 }
 
 /// glam's `Vec3::cross`, lane by lane.
@@ -79,8 +97,8 @@ fn normalize(v: V3) -> V3 {
 /// The surface interactions of the hits `h`, lane `i` bit for bit what
 /// `SurfaceInteraction::new` builds for a hit on a static triangle with those corners,
 /// normals, barycentrics and ray direction (texture coordinates aside).
-#[inline]
-pub fn triangle_surfaces(h: &TriangleHits) -> TriangleSurfaces {
+#[inline(always)]
+pub fn triangle_surfaces(h: &TriangleHits) -> Surfaces {
     let zero = Packet::splat(0.0);
     let one = Packet::splat(1.0);
     let [p0, p1, p2] = h.corners;
@@ -136,13 +154,63 @@ pub fn triangle_surfaces(h: &TriangleHits) -> TriangleSurfaces {
             (V3::select(smooth & finite & above, q, p), smooth)
         }
     };
-    TriangleSurfaces {
+    Surfaces {
         p,
         p_error,
         ng,
         ns,
         base,
         smooth,
+        front,
+        dir,
+    }
+}
+
+/// Up to 16 hits on static spheres, gathered by the caller (unused lanes hold anything:
+/// lanes never mix).
+#[derive(Clone, Copy, Debug)]
+pub struct SphereHits {
+    pub center: V3,
+    pub radius: Packet,
+    /// The ray as traced: origin, direction (not normalised) and hit distance.
+    pub origin: V3,
+    pub dir: V3,
+    pub t: Packet,
+}
+
+/// The surface interactions of the sphere hits `h`, lane `i` bit for bit what
+/// `SurfaceInteraction::new` builds for a hit on a static sphere (texture coordinates
+/// aside): `ray.at(t)` reprojected onto the sphere with its error bound
+/// (`geometry::sphere_point`, pbrt-v4 §6.8.5), both normals the outward normal turned
+/// to face the ray (a hit at the centre faces the ray), no shadow-ray base point.
+#[inline(always)]
+pub fn sphere_surfaces(h: &SphereHits) -> Surfaces {
+    let zero = Packet::splat(0.0);
+    // Ray::at: origin + t * dir.
+    let near = h.origin.plus(h.dir.scale(h.t));
+    // sphere_point.
+    let n = near.minus(h.center).normalize_or_zero();
+    let local = n.scale(h.radius);
+    let p = h.center.plus(local);
+    let p_error = local
+        .abs()
+        .scale(Packet::splat(gamma(5)))
+        .plus(p.abs().scale(Packet::splat(gamma(2))));
+    let dir = normalize(h.dir);
+    let ng1 = V3::select(is_zero(n), dir.negated(), n);
+    let front = h.dir.dot(ng1).simd_lt(zero);
+    let ng = V3::select(front, ng1, ng1.negated());
+    // The shading normal is the outward one, flipped to the facing side as `ng` was
+    // (where `n` is zero, `ns = n = 0` stays zero: `0·ng < 0` is false).
+    let flip = n.dot(ng).simd_lt(zero);
+    let ns = V3::select(flip, n.negated(), n);
+    Surfaces {
+        p,
+        p_error,
+        ng,
+        ns,
+        base: p,
+        smooth: zero,
         front,
         dir,
     }
