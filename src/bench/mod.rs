@@ -491,18 +491,18 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
         Some((b, k)) => (b, k.parse::<u32>().ok()),
         None => (name, None),
     };
-    if let Some(("bvh8", kernel @ ("packet" | "packet8"))) = name_base.split_once('-') {
-        if kernel == "packet8" || min_active.is_some() {
-            let mut bvh = Bvh::<Triangles, 8>::build(tris);
-            if let Some(k) = min_active {
-                bvh.set_packet_min_active([k; 2]);
-            }
-            return Some(Box::new(HalfPackets {
-                name,
-                half: kernel == "packet8",
-                bvh,
-            }));
+    if let Some(("bvh8", kernel @ ("packet" | "packet8"))) = name_base.split_once('-')
+        && (kernel == "packet8" || min_active.is_some())
+    {
+        let mut bvh = Bvh::<Triangles, 8>::build(tris);
+        if let Some(k) = min_active {
+            bvh.set_packet_min_active([k; 2]);
         }
+        return Some(Box::new(HalfPackets {
+            name,
+            half: kernel == "packet8",
+            bvh,
+        }));
     }
     let (base, prefetch) = match name.split_once('+') {
         None => (name, None),
