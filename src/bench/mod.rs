@@ -1107,10 +1107,11 @@ pub fn run(
             return Err(crate::Error::parameter(
                 "mode",
                 format!(
-                    "unknown mode '{m}', expected one of {}, {} or a prefetch variant \
+                    "unknown mode '{m}', expected one of {}, {}, {} or a prefetch variant \
                      (<mode>+pf, <mode>+nopf)",
                     MODES.join(", "),
-                    COMPRESSED_MODES.join(", ")
+                    COMPRESSED_MODES.join(", "),
+                    PACKET_TUNING_MODES.join(", ")
                 ),
             ));
         }
