@@ -492,3 +492,115 @@ fn stream_compaction_matches_scalar_on_all_256_masks() {
         }
     }
 }
+
+/// The packet kernels' tunings (`bench`'s `bvh8-packet8` and `bvh8-packet@K` modes): the
+/// ray-by-ray threshold from 1 (a part never leaves packet traversal) to 17 (always ray
+/// by ray), and 16-ray packets traced as two 8-ray halves (`*_packet8`) or slices cut in
+/// eights (`*_batch8`), on camera rays, shadow segments and random rays, against the
+/// scalar BVH2: bit-identical hits and the same occlusion; partial packets (down to 5
+/// lanes, so the second half is sometimes absent) leave the lanes past `len` untouched.
+#[test]
+fn packet_tunings_match_the_scalar_oracle() {
+    let tris = mesh();
+    let b = bounds_of(&tris);
+    let oracle = Bvh2::build(tris.clone());
+    let cam = camera_rays(&b, 48, 48);
+    let light = b.center() + b.diagonal() * Vec3::new(0.8, 1.2, 0.6);
+    let shadow: Vec<Ray> = cam
+        .iter()
+        .filter_map(|r| oracle.closest_hit(r).map(|h| (r, h)))
+        .map(|(r, h)| {
+            let o = r.origin + r.dir * (h.t * 0.999);
+            let to = light - o;
+            Ray::segment(o, to.normalize(), 0.0, to.length())
+        })
+        .collect();
+    let random = random_rays(&b, 2_000, 77);
+    for (name, rays) in [("camera", &cam), ("shadow", &shadow), ("random", &random)] {
+        packet_tunings::<8, BvhNode<8>>(name, &tris, &oracle, rays);
+        packet_tunings::<8, QNode<8>>(name, &tris, &oracle, rays);
+        packet_tunings::<4, BvhNode<4>>(name, &tris, &oracle, rays);
+    }
+}
+
+fn packet_tunings<const N: usize, T: WideNode<N>>(
+    name: &str,
+    tris: &Triangles,
+    oracle: &Bvh2<Triangles>,
+    rays: &[Ray],
+) where
+    Width<N>: NodeWidth,
+{
+    use packet_render::geometry::RayPacket;
+    let want: Vec<(Option<Hit>, bool)> = rays
+        .iter()
+        .map(|r| (oracle.closest_hit(r), oracle.any_hit(r)))
+        .collect();
+    let (hits, occluded) = (
+        want.iter().filter(|w| w.0.is_some()).count(),
+        want.iter().filter(|w| w.1).count(),
+    );
+    assert!(
+        hits > 20 && occluded > 20,
+        "{name}: too few hits to compare ({hits}, {occluded} occluded)"
+    );
+    let mut bvh = build::<_, N, T>(tris.clone());
+    for k in [1u32, 3, 8, 17] {
+        bvh.set_packet_min_active([k; 2]);
+        let what = format!(
+            "{name}, bvh{N} (compressed: {}), threshold {k}",
+            T::COMPRESSED
+        );
+        // Slices in packets of eight.
+        let mut b8 = vec![None; rays.len()];
+        let mut o8 = vec![false; rays.len()];
+        bvh.closest_hit_batch8(rays, &mut b8);
+        bvh.any_hit_batch8(rays, &mut o8);
+        // SoA packets, whole and as halves.
+        let mut at = 0;
+        for (j, chunk) in rays.chunks(16).enumerate() {
+            let len = (16 - j % 12).min(chunk.len()); // 5..=16 lanes
+            let mut packet = RayPacket::from_rays(chunk);
+            packet.len = len;
+            let marker = Some(Hit {
+                t: -1.0,
+                prim: 7,
+                u: 0.0,
+                v: 0.0,
+            });
+            let (mut h16, mut h8) = ([marker; 16], [marker; 16]);
+            let (mut a16, mut a8) = ([true; 16], [true; 16]);
+            bvh.closest_hit_packet(&packet, &mut h16);
+            bvh.any_hit_packet(&packet, &mut a16);
+            bvh.closest_hit_packet8(&packet, &mut h8);
+            bvh.any_hit_packet8(&packet, &mut a8);
+            for i in 0..16 {
+                if i < len {
+                    let (wh, wo) = want[at + i];
+                    for (kind, h, o) in [("packet", h16[i], a16[i]), ("packet8", h8[i], a8[i])] {
+                        assert!(
+                            same_hit(wh, h) && wo == o,
+                            "{what}: ray {} {kind}: {h:?} occluded {o}, scalar {wh:?} {wo}",
+                            at + i
+                        );
+                    }
+                } else {
+                    assert_eq!(h16[i], marker, "{what}: lane {i} past len");
+                    assert_eq!(h8[i], marker, "{what}: lane {i} past len (halves)");
+                    assert!(a16[i] && a8[i], "{what}: lane {i} past len");
+                }
+            }
+            for i in 0..chunk.len() {
+                let (wh, wo) = want[at + i];
+                assert!(
+                    same_hit(wh, b8[at + i]) && wo == o8[at + i],
+                    "{what}: ray {} batch8: {:?} occluded {}, scalar {wh:?} {wo}",
+                    at + i,
+                    b8[at + i],
+                    o8[at + i]
+                );
+            }
+            at += chunk.len();
+        }
+    }
+}

@@ -289,6 +289,57 @@ impl TraceMode for Batched {
     }
 }
 
+/// The BVH8's packet kernels with a tuning (see [`PACKET_TUNING_MODES`]).
+pub struct HalfPackets {
+    pub name: &'static str,
+    /// Trace 8-ray halves.
+    pub half: bool,
+    pub bvh: Bvh<Triangles, 8>,
+}
+
+impl TraceMode for HalfPackets {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        if self.half {
+            self.bvh.closest_hit_batch8(rays, out);
+        } else {
+            self.bvh.closest_hit_batch(rays, out);
+        }
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        if self.half {
+            self.bvh.any_hit_batch8(rays, out);
+        } else {
+            self.bvh.any_hit_batch(rays, out);
+        }
+    }
+    fn takes_packets(&self) -> bool {
+        true
+    }
+    fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+        if self.half {
+            self.bvh.closest_hit_packet8(rays, out);
+        } else {
+            self.bvh.closest_hit_packet(rays, out);
+        }
+    }
+    fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
+        if self.half {
+            self.bvh.any_hit_packet8(rays, out);
+        } else {
+            self.bvh.any_hit_packet(rays, out);
+        }
+    }
+    fn build_ms(&self) -> f64 {
+        self.bvh.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.bvh.info().memory_bytes
+    }
+}
+
 /// The stream entry points of [`Accel`]: a band's valid rays as one batch.
 pub struct Streamed {
     pub name: &'static str,
@@ -367,12 +418,36 @@ pub const PREFETCH_MODES: &[&str] = &[
     "bvh8c-stream+nopf",
 ];
 
+/// Tuning variants of the BVH8's packet kernels: `packet8` traces each 16-ray packet
+/// as two 8-ray halves (`F8` lanes, AVX2's width, Embree's `rtcOccluded8` shape); `@K`
+/// sets the ray-by-ray threshold (a packet part with fewer than K active lanes finishes
+/// its subtree ray by ray; Embree's hybrid kernels switch at 7 of 8 lanes).
+///
+/// Not shown to win, so the defaults stay (16 lanes, threshold 3). Bunny, 1 thread, 5
+/// passes, two runs on the loaded AVX2 machine (cpu 0.62-0.69), shadow medians Mrays/s:
+/// `bvh8-packet` 4.06 and 7.26 (first and last mode of one run: the noise), 4.27 and
+/// 3.87; `packet8` 4.06, 5.24; `@5` 4.02, 4.37; `@8` 3.93, 5.61; `packet8@5` 4.03,
+/// 4.59; `packet8@7` 5.03, 4.05. Instructions (callgrind, `examples/stream_profile
+/// bunny.obj MODE shadow 1`) of the occlusion kernel: 16 lanes 328.0 M, `@8` 329.8 M,
+/// `packet8` 346.3 M (+5.6 %), `packet8@5` 350.2 M. Kept for a quiet-machine A/B.
+pub const PACKET_TUNING_MODES: &[&str] = &[
+    "bvh8-packet8",
+    "bvh8-packet@2",
+    "bvh8-packet@5",
+    "bvh8-packet@8",
+    "bvh8-packet@12",
+    "bvh8-packet8@2",
+    "bvh8-packet8@5",
+    "bvh8-packet8@7",
+];
+
 /// The name of a mode `bench` knows, as a `'static` string.
 pub fn known_mode(name: &str) -> Option<&'static str> {
     MODES
         .iter()
         .chain(COMPRESSED_MODES)
         .chain(PREFETCH_MODES)
+        .chain(PACKET_TUNING_MODES)
         .copied()
         .find(|&m| m == name)
 }
@@ -410,6 +485,23 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
         return Some(Box::new(SingleRay {
             name,
             accel: AccelKind::Bvh2.build(tris),
+        }));
+    }
+    let (name_base, min_active) = match name.split_once('@') {
+        Some((b, k)) => (b, k.parse::<u32>().ok()),
+        None => (name, None),
+    };
+    if let Some(("bvh8", kernel @ ("packet" | "packet8"))) = name_base.split_once('-')
+        && (kernel == "packet8" || min_active.is_some())
+    {
+        let mut bvh = Bvh::<Triangles, 8>::build(tris);
+        if let Some(k) = min_active {
+            bvh.set_packet_min_active([k; 2]);
+        }
+        return Some(Box::new(HalfPackets {
+            name,
+            half: kernel == "packet8",
+            bvh,
         }));
     }
     let (base, prefetch) = match name.split_once('+') {
@@ -1015,10 +1107,11 @@ pub fn run(
             return Err(crate::Error::parameter(
                 "mode",
                 format!(
-                    "unknown mode '{m}', expected one of {}, {} or a prefetch variant \
+                    "unknown mode '{m}', expected one of {}, {}, {} or a prefetch variant \
                      (<mode>+pf, <mode>+nopf)",
                     MODES.join(", "),
-                    COMPRESSED_MODES.join(", ")
+                    COMPRESSED_MODES.join(", "),
+                    PACKET_TUNING_MODES.join(", ")
                 ),
             ));
         }

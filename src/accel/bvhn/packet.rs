@@ -7,9 +7,11 @@ use super::packet_setup::{PacketRays, PacketSetup, for_each_bit, lane_query};
 use super::stack::{PACKET_STACK, Stack, insert_far_to_near};
 use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
-use crate::geometry::{Hit, LaneRays, PrimHit, ROBUST_FAR_SCALE, RayQuery, intersect_triangle};
-use crate::simd::Lanes;
+use crate::geometry::{
+    Hit, LaneRays, PrimHit, ROBUST_FAR_SCALE, Ray, RayPacket, RayQuery, intersect_triangle,
+};
 use crate::simd::kernels::triangle_packet;
+use crate::simd::{F8, Lanes};
 use glam::Vec3;
 
 /// Rays a packet part keeps traversing together; with fewer active rays it finishes the
@@ -98,7 +100,7 @@ where
             let active = mask & cur_enter.le(tcull).bitmask();
             if active == 0 {
                 // culled: every lane has a closer hit than this subtree's entry
-            } else if active.count_ones() < PACKET_MIN_ACTIVE {
+            } else if active.count_ones() < self.packet_min_active[0] {
                 // Too few rays left to share the work: finish the subtree ray by ray.
                 let tm = tmax.to_array();
                 let mut m = active;
@@ -170,9 +172,8 @@ where
                         if g.ids[lane] == u32::MAX {
                             continue;
                         }
-                        let corners = g.corners(lane);
                         let (t, u, v, bits, edge) =
-                            triangle_packet::<L, SHARED>(&p.shear, &corners, tmax, active);
+                            triangle_packet::<L, SHARED>(&p.shear, g, lane, tmax, active);
                         let mut bits = bits;
                         let (mut t, mut u, mut v) = (t, u, v);
                         if edge != 0 {
@@ -182,7 +183,7 @@ where
                             let tm = tmax.to_array();
                             edge_lanes_scalar(
                                 rays,
-                                &corners,
+                                &g.corners(lane),
                                 edge,
                                 |i, _| tm.as_ref()[i],
                                 |i, h| {
@@ -266,7 +267,7 @@ where
         loop {
             let active = mask & !occluded & cur_enter.le(tcull).bitmask();
             if active == 0 {
-            } else if active.count_ones() < PACKET_MIN_ACTIVE {
+            } else if active.count_ones() < self.packet_min_active[1] {
                 let mut m = active;
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
@@ -322,17 +323,18 @@ where
                             continue;
                         }
                         let live = active & !occluded;
-                        let corners = g.corners(lane);
                         let (_, _, _, bits, edge) =
-                            triangle_packet::<L, SHARED>(&p.shear, &corners, p.tmax, live);
+                            triangle_packet::<L, SHARED>(&p.shear, g, lane, p.tmax, live);
                         occluded |= bits;
-                        edge_lanes_scalar(
-                            rays,
-                            &corners,
-                            edge,
-                            |_, q| q.tmax,
-                            |i, _| occluded |= 1 << i,
-                        );
+                        if edge != 0 {
+                            edge_lanes_scalar(
+                                rays,
+                                &g.corners(lane),
+                                edge,
+                                |_, q| q.tmax,
+                                |i, _| occluded |= 1 << i,
+                            );
+                        }
                         if active & !occluded == 0 {
                             break 'groups;
                         }
@@ -371,4 +373,82 @@ fn edge_lanes_scalar<R: LaneRays + ?Sized>(
             hit(i, h);
         }
     });
+}
+
+/// Lanes `off..off + 8` of a [`RayPacket`] as an 8-ray packet (a 4x2 half of a 4x4
+/// block): the packet kernels at the native width of AVX2.
+struct HalfPacket<'a> {
+    p: &'a RayPacket,
+    off: usize,
+}
+
+impl LaneRays for HalfPacket<'_> {
+    #[inline(always)]
+    fn lane_count(&self) -> usize {
+        self.p.len.saturating_sub(self.off).min(8)
+    }
+    #[inline(always)]
+    fn load_lanes<L: Lanes>(&self) -> [L; 8] {
+        let o = self.off;
+        [
+            L::load(&self.p.origin[0][o..]),
+            L::load(&self.p.origin[1][o..]),
+            L::load(&self.p.origin[2][o..]),
+            L::load(&self.p.dir[0][o..]),
+            L::load(&self.p.dir[1][o..]),
+            L::load(&self.p.dir[2][o..]),
+            L::load(&self.p.tmin[o..]),
+            L::load(&self.p.tmax[o..]),
+        ]
+    }
+    #[inline(always)]
+    fn lane_origin(&self, i: usize) -> [f32; 3] {
+        let i = self.off + i;
+        [
+            self.p.origin[0][i],
+            self.p.origin[1][i],
+            self.p.origin[2][i],
+        ]
+    }
+    #[inline(always)]
+    fn lane_query(&self, i: usize) -> Option<RayQuery> {
+        RayQuery::new(&self.p.ray(self.off + i))
+    }
+}
+
+impl<P: Primitives, const N: usize, T: WideNode<N>> Bvh<P, N, T>
+where
+    Width<N>: NodeWidth,
+{
+    /// Closest hits of a packet traced as two 8-ray halves (`F8` lanes).
+    pub fn closest_hit_packet8(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
+        for off in [0, 8] {
+            if packet.len > off {
+                self.packet_closest::<F8, _>(&HalfPacket { p: packet, off }, &mut out[off..]);
+            }
+        }
+    }
+
+    /// Occlusion of a packet traced as two 8-ray halves (`F8` lanes).
+    pub fn any_hit_packet8(&self, packet: &RayPacket, out: &mut [bool]) {
+        for off in [0, 8] {
+            if packet.len > off {
+                self.packet_any::<F8, _>(&HalfPacket { p: packet, off }, &mut out[off..]);
+            }
+        }
+    }
+
+    /// Closest hits of `rays` in packets of eight (`F8` lanes).
+    pub fn closest_hit_batch8(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        for (r, o) in rays.chunks(8).zip(out.chunks_mut(8)) {
+            self.packet_closest::<F8, _>(r, o);
+        }
+    }
+
+    /// Occlusion of `rays` in packets of eight (`F8` lanes).
+    pub fn any_hit_batch8(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.chunks(8).zip(out.chunks_mut(8)) {
+            self.packet_any::<F8, _>(r, o);
+        }
+    }
 }

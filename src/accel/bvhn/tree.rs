@@ -3,6 +3,7 @@
 
 use super::collapse::{Collapse, PARALLEL_COLLAPSE_LEVELS};
 use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, leaf_range};
+use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
@@ -53,6 +54,9 @@ pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
     /// (children - 1) along a root-to-leaf path.
     pub(super) stack_need: usize,
     pub(super) prefetch: Prefetch,
+    /// Packet traversal: a part with fewer active lanes than this finishes its subtree
+    /// ray by ray (`[closest, occlusion]`).
+    pub(super) packet_min_active: [u32; 2],
 }
 
 /// The 4-wide BVH.
@@ -128,6 +132,7 @@ where
             info: AccelInfo::default(),
             stack_need: 0,
             prefetch: Prefetch::default(),
+            packet_min_active: [PACKET_MIN_ACTIVE; 2],
         };
         let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
         assert!(
@@ -188,6 +193,12 @@ where
     /// Which traversals prefetch (see [`Prefetch`]).
     pub fn set_prefetch(&mut self, prefetch: Prefetch) {
         self.prefetch = prefetch;
+    }
+
+    /// The packet kernels' ray-by-ray threshold (`[closest, occlusion]`; default
+    /// [`PACKET_MIN_ACTIVE`] for both).
+    pub fn set_packet_min_active(&mut self, min_active: [u32; 2]) {
+        self.packet_min_active = min_active;
     }
 
     /// Prefetches what visiting child reference `r` reads first: its node (every
