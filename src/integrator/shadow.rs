@@ -53,6 +53,8 @@ use crate::accel::{
 };
 use crate::geometry::Ray;
 use crate::scene::{Scene, SphereSet};
+use crate::simd::PACKET_WIDTH;
+use crate::simd::glass_shadow::crossing_counts;
 use crate::stats::RayCounts;
 use glam::Vec3;
 
@@ -76,6 +78,19 @@ pub struct ShadowFilter {
     opaque: [bool; 4],
     /// The triangle and the sphere set, split where mixed.
     split: [Option<SplitSet>; 2],
+    /// The passing part of a split sphere set when every sphere of it is glass of one
+    /// `transmission` (no cut-outs): its rays are settled in lanes
+    /// ([`crate::simd::glass_shadow`]).
+    glass: Option<GlassSpheres>,
+}
+
+/// Glass spheres of one transmission colour. A ray crossing their surfaces `n` times in
+/// its interval has the transmittance `transmission` multiplied in `n` times, whatever
+/// the order the filtered query would offer the crossings in (all factors are equal),
+/// so counting the crossings in lanes gives the filtered query's factor bit for bit.
+struct GlassSpheres {
+    spheres: Vec<(Vec3, f32)>,
+    transmission: Vec3,
 }
 
 /// A mixed primitive set split by what its primitives do to a shadow ray. A ray that
@@ -95,6 +110,9 @@ pub struct ShadowScratch {
     rays: Vec<Ray>,
     index: Vec<u32>,
     blocked: Vec<bool>,
+    /// Rays for the glass lanes and their indices in the batch.
+    pending: Vec<Ray>,
+    pending_index: Vec<u32>,
 }
 
 impl ShadowFilter {
@@ -134,6 +152,26 @@ impl ShadowFilter {
             }
         });
         let set = &scene.spheres;
+        let glass = mixed(&set.material).and_then(|passing| {
+            let material = |i: u32| &scene.materials[set.material[i as usize] as usize];
+            let transmission = material(passing[0]).transmission;
+            passing
+                .iter()
+                .all(|&i| {
+                    let m = material(i);
+                    through_glass
+                        && m.is_transmissive()
+                        && !m.has_cutout()
+                        && m.transmission == transmission
+                })
+                .then(|| GlassSpheres {
+                    spheres: passing
+                        .iter()
+                        .map(|&i| (set.center(i as usize), set.radius[i as usize]))
+                        .collect(),
+                    transmission,
+                })
+        });
         let spheres = mixed(&set.material).map(|passing| {
             let part = |keep: &dyn Fn(u32) -> bool| -> Box<dyn Accel> {
                 let mut sub = SphereSet::default();
@@ -164,6 +202,7 @@ impl ShadowFilter {
                 false,
             ],
             split: [triangles, spheres],
+            glass,
         })
     }
 
@@ -251,17 +290,26 @@ impl ShadowFilter {
             split
                 .opaque
                 .any_hit_batch(&scratch.rays, &mut scratch.blocked);
+            let glass = self.glass.as_ref().filter(|_| set == Occluder::Spheres);
+            scratch.pending.clear();
+            scratch.pending_index.clear();
             for ((&i, r), &b) in scratch
                 .index
                 .iter()
                 .zip(&scratch.rays)
                 .zip(&scratch.blocked)
             {
-                out[i as usize] = if b {
-                    Vec3::ZERO
+                if b {
+                    out[i as usize] = Vec3::ZERO;
+                } else if glass.is_some() {
+                    scratch.pending.push(*r);
+                    scratch.pending_index.push(i);
                 } else {
-                    self.through_passing(scene, accel, r, set, split)
-                };
+                    out[i as usize] = self.through_passing(scene, accel, r, set, split);
+                }
+            }
+            if let Some(glass) = glass {
+                self.through_glass_lanes(scene, accel, glass, scratch, out);
             }
         }
         for ((o, r), f) in out.iter_mut().zip(rays).zip(first) {
@@ -269,6 +317,40 @@ impl ShadowFilter {
                 && !self.is_split(set)
             {
                 *o = self.transmittance(scene, accel, r, set, counts);
+            }
+        }
+    }
+
+    /// [`through_passing`](Self::through_passing) of the sphere set for the rays of
+    /// `scratch.pending` (into `out` at `scratch.pending_index`), the glass crossings
+    /// counted in lanes.
+    fn through_glass_lanes(
+        &self,
+        scene: &Scene,
+        accel: &SceneAccel,
+        glass: &GlassSpheres,
+        scratch: &ShadowScratch,
+        out: &mut [Vec3],
+    ) {
+        let later = accel.has_sets_from(Occluder::Moving);
+        for (rays, ids) in scratch
+            .pending
+            .chunks(PACKET_WIDTH)
+            .zip(scratch.pending_index.chunks(PACKET_WIDTH))
+        {
+            let counts = crossing_counts(rays, &glass.spheres);
+            for ((r, &i), &n) in rays.iter().zip(ids).zip(&counts) {
+                let mut t = Vec3::ONE;
+                for _ in 0..n {
+                    t *= glass.transmission;
+                }
+                out[i as usize] = if t == Vec3::ZERO {
+                    Vec3::ZERO
+                } else if later {
+                    transmittance_on(scene, accel, r, self.through_glass, Occluder::Moving, t)
+                } else {
+                    t
+                };
             }
         }
     }
