@@ -40,19 +40,26 @@ pub struct TinyScratch {
     /// Ray indices sorted by shear key.
     order: Vec<u32>,
     keys: Vec<u8>,
-    rays: Vec<Ray>,
 }
 
 impl TinyScene {
     /// `Some` for a scene whose static triangles and spheres number at most
     /// [`TINY_MAX_PRIMITIVES`] (and at least one).
     pub fn build(scene: &Scene) -> Option<TinyScene> {
+        Self::build_up_to(scene, TINY_MAX_PRIMITIVES)
+    }
+
+    /// [`build`](Self::build) with another limit (`examples/tiny_threshold.rs`
+    /// measures the batch queries with it above the chosen one).
+    pub fn build_up_to(scene: &Scene, limit: usize) -> Option<TinyScene> {
         let n = scene.mesh.len() + scene.spheres.len();
-        if n == 0 || n > TINY_MAX_PRIMITIVES {
+        if n == 0 || n > limit {
             return None;
         }
         Some(TinyScene {
-            triangles: (0..scene.mesh.len()).map(|i| scene.mesh.corners(i)).collect(),
+            triangles: (0..scene.mesh.len())
+                .map(|i| scene.mesh.corners(i))
+                .collect(),
             spheres: (0..scene.spheres.len())
                 .map(|i| (scene.spheres.center(i), scene.spheres.radius[i]))
                 .collect(),
@@ -99,12 +106,14 @@ impl TinyScene {
         for key in 0..KEYS {
             let ids = &scratch.order[start[key]..start[key] + count[key]];
             for chunk in ids.chunks(TINY_WIDTH) {
-                scratch.rays.clear();
-                scratch.rays.extend(chunk.iter().map(|&i| rays[i as usize]));
-                f(chunk, &TinyGroup::new(&scratch.rays, key));
+                f(chunk, &TinyGroup::new(rays, chunk, key));
             }
         }
-        debug_assert!(scratch.order[valid..].iter().all(|&i| !rays[i as usize].is_valid()));
+        debug_assert!(
+            scratch.order[valid..]
+                .iter()
+                .all(|&i| !rays[i as usize].is_valid())
+        );
     }
 
     /// Closest hits of `rays` over the triangles and spheres into `out` (`None` for a

@@ -9,7 +9,7 @@
 //! it lies beyond the near one and before `tmax` (the scalar code re-runs the test with
 //! `tmin` moved to the first root, which computes the same two roots).
 
-use super::kernels::RayLanes;
+use super::kernels::{RayLanes, sphere_lanes};
 use super::{Lanes, PACKET_WIDTH, Packet};
 use crate::geometry::Ray;
 use glam::Vec3;
@@ -55,16 +55,30 @@ pub fn sphere_crossings<L: Lanes>(
 /// meets over `spheres` (centre, radius) in its interval `(tmin, tmax)`: what the
 /// filtered query offers a filter that rejects every candidate.
 pub fn crossing_counts(rays: &[Ray], spheres: &[(Vec3, f32)]) -> [u32; PACKET_WIDTH] {
+    settle_lanes(rays, &[], spheres).1
+}
+
+/// `(blocked, counts)` for `rays` (at most [`PACKET_WIDTH`], all valid): the bits of
+/// the rays that one of the `opaque` spheres blocks (`intersect_sphere` in the
+/// interval, as an any-hit query), and for the others [`crossing_counts`] over
+/// `glass` (zero for a blocked ray).
+pub fn settle_lanes(
+    rays: &[Ray],
+    opaque: &[(Vec3, f32)],
+    glass: &[(Vec3, f32)],
+) -> (u32, [u32; PACKET_WIDTH]) {
     debug_assert!(rays.len() <= PACKET_WIDTH);
     let mut a = [[0.0f32; PACKET_WIDTH]; 8];
     for (i, r) in rays.iter().enumerate() {
         debug_assert!(r.is_valid());
-        let v = [
-            r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax,
-        ];
-        for (k, x) in v.into_iter().enumerate() {
-            a[k][i] = x;
-        }
+        a[0][i] = r.origin.x;
+        a[1][i] = r.origin.y;
+        a[2][i] = r.origin.z;
+        a[3][i] = r.dir.x;
+        a[4][i] = r.dir.y;
+        a[5][i] = r.dir.z;
+        a[6][i] = r.tmin;
+        a[7][i] = r.tmax;
     }
     let [ox, oy, oz, dx, dy, dz, tmin, tmax] = a.map(Packet::from_array);
     let lanes = RayLanes {
@@ -72,13 +86,25 @@ pub fn crossing_counts(rays: &[Ray], spheres: &[(Vec3, f32)]) -> [u32; PACKET_WI
         d: [dx, dy, dz],
         tmin,
     };
-    let active = ((1u64 << rays.len()) - 1) as u32;
+    let all = ((1u64 << rays.len()) - 1) as u32;
+    let mut blocked = 0;
+    for &(center, radius) in opaque {
+        let live = all & !blocked;
+        if live == 0 {
+            break;
+        }
+        blocked |= sphere_lanes(&lanes, center, radius, tmax, live).1;
+    }
+    let active = all & !blocked;
     let mut counts = [0u32; PACKET_WIDTH];
-    for &(center, radius) in spheres {
+    for &(center, radius) in glass {
+        if active == 0 {
+            break;
+        }
         let (once, twice) = sphere_crossings(&lanes, center, radius, tmax, active);
         for (i, c) in counts.iter_mut().enumerate() {
             *c += (once >> i & 1) + (twice >> i & 1);
         }
     }
-    counts
+    (blocked, counts)
 }

@@ -34,31 +34,36 @@ pub fn shear_key(r: &Ray) -> Option<usize> {
 }
 
 /// Up to [`TINY_WIDTH`] valid rays of the same [`shear_key`], as lanes.
-pub struct TinyGroup {
+pub struct TinyGroup<'a> {
     pub lanes: RayLanes<TinyLanes>,
     pub tmax: TinyLanes,
     pub shear: PacketShear<TinyLanes>,
     /// Bits of the lanes holding a ray.
     pub mask: u32,
-    /// The rays, for the scalar fallback of uncertain triangle edges.
-    rays: [Ray; TINY_WIDTH],
+    /// The batch and the index in it of each lane's ray, for the scalar fallback of
+    /// uncertain triangle edges.
+    rays: &'a [Ray],
+    ids: &'a [u32],
 }
 
-impl TinyGroup {
-    /// The group of `rays` (at most [`TINY_WIDTH`], all valid, all of key `key`).
-    pub fn new(rays: &[Ray], key: usize) -> TinyGroup {
-        debug_assert!(rays.len() <= TINY_WIDTH);
+impl<'a> TinyGroup<'a> {
+    /// The group of the rays `rays[ids[i]]` (at most [`TINY_WIDTH`], all valid, all
+    /// of key `key`), gathered straight into lanes.
+    #[inline]
+    pub fn new(rays: &'a [Ray], ids: &'a [u32], key: usize) -> TinyGroup<'a> {
+        debug_assert!(ids.len() <= TINY_WIDTH);
         let mut a = [[0.0f32; TINY_WIDTH]; 8];
-        let mut held = [Ray::new(Vec3::ZERO, Vec3::Y); TINY_WIDTH];
-        for (i, r) in rays.iter().enumerate() {
+        for (i, &id) in ids.iter().enumerate() {
+            let r = &rays[id as usize];
             debug_assert_eq!(shear_key(r), Some(key));
-            let v = [
-                r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax,
-            ];
-            for (k, x) in v.into_iter().enumerate() {
-                a[k][i] = x;
-            }
-            held[i] = *r;
+            a[0][i] = r.origin.x;
+            a[1][i] = r.origin.y;
+            a[2][i] = r.origin.z;
+            a[3][i] = r.dir.x;
+            a[4][i] = r.dir.y;
+            a[5][i] = r.dir.z;
+            a[6][i] = r.tmin;
+            a[7][i] = r.tmax;
         }
         let [ox, oy, oz, dx, dy, dz, tmin, tmax] = a.map(TinyLanes::from_array);
         let (o, d) = ([ox, oy, oz], [dx, dy, dz]);
@@ -84,14 +89,15 @@ impl TinyGroup {
                 sz,
                 tmin,
             },
-            mask: ((1u64 << rays.len()) - 1) as u32,
-            rays: held,
+            mask: ((1u64 << ids.len()) - 1) as u32,
+            rays,
+            ids,
         }
     }
 
     /// The scalar query of lane `i` (a valid ray).
     fn query(&self, i: usize) -> RayQuery {
-        RayQuery::new(&self.rays[i]).expect("a tiny group holds valid rays only")
+        RayQuery::new(&self.rays[self.ids[i] as usize]).expect("a tiny group holds valid rays only")
     }
 
     /// Closest hits over `triangles` then `spheres` (index order, strict `t < tmax`),
@@ -111,7 +117,8 @@ impl TinyGroup {
                 let tm = tmax.to_array();
                 for_each_bit(edge, |i| {
                     let q = self.query(i);
-                    if let Some(h) = intersect_triangle(&q, corners[0], corners[1], corners[2], tm[i])
+                    if let Some(h) =
+                        intersect_triangle(&q, corners[0], corners[1], corners[2], tm[i])
                     {
                         (ta[i], ua[i], va[i]) = (h.t, h.u, h.v);
                         bits |= 1 << i;
