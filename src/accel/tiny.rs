@@ -23,9 +23,24 @@ use glam::Vec3;
 /// The most static triangles plus spheres a scene may have for its batch queries to go
 /// through [`TinyScene`].
 ///
-/// Measured (AVX2, 1 thread, `render --stats-json`, render phase, interleaved with the
-/// tree path; see the commit introducing it): whitted_base (4 primitives) and scenes
-/// of 8 and 16 primitives built from it, see `TINY_MEASURED` below.
+/// Measured with `cargo run --release --example tiny_threshold` (AVX2, 1 thread, the
+/// 2-core machine loaded ~5 by other work; a floor quad plus `n - 2` spheres, 512x384
+/// camera rays and their shadow segments in batches of 4096, BVH4 packets against the
+/// tiny lanes, ns per ray, the minimum over 4 runs of the minimum of 7):
+///
+/// | primitives | closest tree / tiny | occlusion tree / tiny |
+/// |-----------:|--------------------:|----------------------:|
+/// |  4 | 33.8 / 21.7 (1.56x) | 30.0 / 19.1 (1.57x) |
+/// |  6 | 36.7 / 24.6 (1.49x) | 32.0 / 22.4 (1.43x) |
+/// |  8 | 34.1 / 30.1 (1.13x) | 34.6 / 26.5 (1.31x) |
+/// | 12 | 36.8 / 32.9 (1.12x) | 32.5 / 30.6 (1.06x) |
+/// | 16 | 37.5 / 38.8 (0.97x) | 34.0 / 36.4 (0.93x) |
+/// | 24 | 39.6 / 50.4 (0.79x) | 36.0 / 46.0 (0.78x) |
+/// | 32 | 41.9 / 63.5 (0.66x) | 38.4 / 59.7 (0.64x) |
+///
+/// Break-even lies between 12 and 16; 8 keeps a clear margin on a noisy machine
+/// (single runs scattered by up to 2x). On AVX-512, where a 16-lane group is one
+/// register, the break-even should move up; not measured.
 pub const TINY_MAX_PRIMITIVES: usize = 8;
 
 /// The primitives of a tiny scene in scene order.
