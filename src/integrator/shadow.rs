@@ -109,9 +109,10 @@ pub struct ShadowFilter {
 /// cores, min/median/max ms, images byte-identical: whitted_area64 at 512x384 render
 /// 2625/2949/3139 -> 1638/1719/2020, area-shadow stage 1932/2109/2258 ->
 /// 903/1000/1210; whitted_base render 616/834/885 -> 584/637/713, shadow stage
-/// 189/270/281 -> 91/120/148. Before, `sphere_candidates`, `filtered_hit` and the
-/// opaque part's `packet_any` were ~25 % of area64 (perf); after, the lanes
-/// (`crossing_counts` / `settle_lanes`) are ~2 %.
+/// 189/270/281 -> 91/120/148. perf (area64 at 256x192, self time): before, the
+/// filtered query over the glass part (`sphere_candidates`, `filtered_hit`) was ~14 %
+/// of the frame and the opaque part's `packet_any` ~5 %; after, `settle_lanes` is
+/// 2.5 % and `transmittance_batch` around it 5 %.
 struct GlassSpheres {
     spheres: Vec<(Vec3, f32)>,
     transmission: Vec3,
