@@ -7,6 +7,7 @@
 //! kernel's prefetch on, exact ones with the defaults, so both paths are exercised.
 
 mod common;
+mod tiny_lanes;
 
 use common::*;
 use glam::Vec3;

@@ -18,6 +18,7 @@ mod octree;
 mod primitives;
 mod sah_build;
 pub mod spatial;
+mod tiny;
 
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
@@ -34,6 +35,7 @@ pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};
 pub use octree::{Octree, OctreeNode, OctreeOptions};
 pub use primitives::{Primitives, Spheres, Triangles};
 pub use spatial::TraversalCounts;
+pub use tiny::{TINY_MAX_PRIMITIVES, TinyScene, TinyScratch};
 
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, RayPacket};
@@ -297,6 +299,11 @@ pub struct SceneAccel {
     pub instances: Option<InstanceAccel>,
     /// Infinite planes, tested against every ray (`extras.rs`).
     pub planes: Vec<crate::scene::Plane>,
+    /// The static triangles and spheres again, for the batch queries of a scene of at
+    /// most [`TINY_MAX_PRIMITIVES`] of them (`tiny.rs`); `None` above that. Setting it
+    /// to `None` sends the batch queries through the structures (same answers up to
+    /// which primitive wins an exact tie in `t`).
+    pub tiny: Option<TinyScene>,
 }
 
 impl SceneAccel {
@@ -314,6 +321,7 @@ impl SceneAccel {
             moving,
             instances,
             planes,
+            tiny: TinyScene::build(scene),
         }
     }
 
@@ -503,6 +511,32 @@ impl SceneAccel {
     ) {
         debug_assert_eq!(rays.len(), out.len());
         out.fill(None);
+        if let Some(tiny) = &self.tiny {
+            tiny.closest_batch(rays, out, &mut scratch.tiny);
+        } else {
+            self.closest_sets_batch(rays, out, scratch);
+        }
+        if let Some(m) = &self.moving {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                let best = closer(*o, r, |r| m.closest_triangle(r), PrimRef::MovingTriangle);
+                *o = closer(best, r, |r| m.closest_sphere(r), PrimRef::MovingSphere);
+            }
+        }
+        if self.instances.is_some() || !self.planes.is_empty() {
+            for (r, o) in rays.iter().zip(out.iter_mut()) {
+                *o = self.closest_extra(r, *o);
+            }
+        }
+    }
+
+    /// The closest-hit batch over the triangle and sphere structures (`out` starts
+    /// all `None`).
+    fn closest_sets_batch(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<SceneHit>],
+        scratch: &mut BatchScratch,
+    ) {
         let hits = &mut scratch.hits;
         hits.clear();
         hits.resize(rays.len(), None);
@@ -545,17 +579,6 @@ impl SceneAccel {
                 }
             }
         }
-        if let Some(m) = &self.moving {
-            for (r, o) in rays.iter().zip(out.iter_mut()) {
-                let best = closer(*o, r, |r| m.closest_triangle(r), PrimRef::MovingTriangle);
-                *o = closer(best, r, |r| m.closest_sphere(r), PrimRef::MovingSphere);
-            }
-        }
-        if self.instances.is_some() || !self.planes.is_empty() {
-            for (r, o) in rays.iter().zip(out.iter_mut()) {
-                *o = self.closest_extra(r, *o);
-            }
-        }
     }
 
     /// Occlusion for a batch of rays: each kind's batch entry point over the rays no
@@ -594,6 +617,42 @@ impl SceneAccel {
     ) {
         debug_assert_eq!(rays.len(), out.len());
         out.fill(false);
+        if let Some(tiny) = &self.tiny {
+            tiny.occluders_batch(rays, &mut scratch.tiny, |i, set| {
+                out[i] = true;
+                mark(i, set);
+            });
+        } else {
+            self.occluders_sets_batch(rays, out, scratch, &mut mark);
+        }
+        if let Some(m) = &self.moving {
+            for (i, (r, o)) in rays.iter().zip(out.iter_mut()).enumerate() {
+                if !*o && m.any_hit(r) {
+                    *o = true;
+                    mark(i, Occluder::Moving);
+                }
+            }
+        }
+        if self.instances.is_some() || !self.planes.is_empty() {
+            for (i, (r, o)) in rays.iter().zip(out.iter_mut()).enumerate() {
+                if !*o && self.any_extra(r) {
+                    *o = true;
+                    mark(i, Occluder::Other);
+                }
+            }
+        }
+    }
+
+    /// The occlusion batch over the triangle and sphere structures (`out` starts all
+    /// false).
+    #[inline(always)]
+    fn occluders_sets_batch(
+        &self,
+        rays: &[Ray],
+        out: &mut [bool],
+        scratch: &mut BatchScratch,
+        mark: &mut impl FnMut(usize, Occluder),
+    ) {
         let kinds = [
             (self.triangles.as_deref(), Occluder::Triangles),
             (self.spheres.as_deref(), Occluder::Spheres),
@@ -639,22 +698,6 @@ impl SceneAccel {
                 }
             }
         }
-        if let Some(m) = &self.moving {
-            for (i, (r, o)) in rays.iter().zip(out.iter_mut()).enumerate() {
-                if !*o && m.any_hit(r) {
-                    *o = true;
-                    mark(i, Occluder::Moving);
-                }
-            }
-        }
-        if self.instances.is_some() || !self.planes.is_empty() {
-            for (i, (r, o)) in rays.iter().zip(out.iter_mut()).enumerate() {
-                if !*o && self.any_extra(r) {
-                    *o = true;
-                    mark(i, Occluder::Other);
-                }
-            }
-        }
     }
 
     /// Build statistics of each structure present.
@@ -676,6 +719,7 @@ pub struct BatchScratch {
     rays: Vec<Ray>,
     index: Vec<u32>,
     blocked: Vec<bool>,
+    tiny: TinyScratch,
 }
 
 /// `best`, or the hit `query` finds before it.

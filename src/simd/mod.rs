@@ -13,6 +13,7 @@ pub mod camera;
 pub mod compact;
 pub mod direct_light;
 pub mod exact_sums;
+pub mod glass_shadow;
 pub mod kernels;
 pub mod lanes3;
 pub mod left_pack;
@@ -21,6 +22,7 @@ pub mod prefetch;
 pub mod quant;
 pub mod specular;
 pub mod surface;
+pub mod tiny;
 
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 use wide::{f32x4, f32x8, f32x16};

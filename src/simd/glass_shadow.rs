@@ -1,0 +1,110 @@
+//! Transmitted shadow rays through glass spheres in lanes: how many times each ray
+//! crosses a sphere's surface inside its interval, which is how many times the filtered
+//! query (`accel::filter`, `sphere_candidates`) would offer that sphere to the
+//! transmittance filter (`integrator::shadow`).
+//!
+//! The roots are [`sphere_lanes`](super::kernels::sphere_lanes)'s arithmetic (the lane
+//! twin of `geometry::intersect_sphere`, bit for bit), and the count follows
+//! `sphere_candidates` exactly: the nearest root in `(tmin, tmax)`, then the far root if
+//! it lies beyond the near one and before `tmax` (the scalar code re-runs the test with
+//! `tmin` moved to the first root, which computes the same two roots).
+
+use super::kernels::{RayLanes, sphere_lanes};
+use super::{Lanes, PACKET_WIDTH, Packet};
+use crate::geometry::Ray;
+use glam::Vec3;
+
+/// The crossings of the lanes in `active` with one sphere: `(once, twice)`, the bits of
+/// the lanes with at least one candidate and of those with two.
+#[inline(always)]
+pub fn sphere_crossings<L: Lanes>(
+    r: &RayLanes<L>,
+    center: Vec3,
+    radius: f32,
+    tmax: L,
+    active: u32,
+) -> (u32, u32) {
+    let dot = |a: &[L; 3], b: &[L; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let f = [
+        r.o[0] - L::splat(center.x),
+        r.o[1] - L::splat(center.y),
+        r.o[2] - L::splat(center.z),
+    ];
+    let a = dot(&r.d, &r.d);
+    let b = L::splat(-1.0) * dot(&f, &r.d);
+    let ba = b / a;
+    let l = [f[0] + ba * r.d[0], f[1] + ba * r.d[1], f[2] + ba * r.d[2]];
+    let r2 = L::splat(radius * radius);
+    let disc = a * (r2 - dot(&l, &l));
+    let real = L::splat(0.0).le(disc).bitmask(); // false for NaN, as in the scalar test
+    let c = dot(&f, &f) - r2;
+    // copysign(sqrt(disc), b): the root is +0 or positive, so OR-ing b's sign bit in is exact.
+    let q = b + (disc.sqrt() | (b & L::splat(-0.0)));
+    let nonzero = !q.eq(L::splat(0.0)).bitmask();
+    let (t0, t1) = (c / q, q / a);
+    let swap = t0.gt(t1);
+    let (lo, hi) = (L::select(swap, t1, t0), L::select(swap, t0, t1));
+    let hits = real & nonzero & active;
+    let first = (lo.gt(r.tmin) & lo.lt(tmax)).bitmask();
+    let second = (hi.gt(r.tmin) & hi.lt(tmax)).bitmask();
+    let beyond = (hi.gt(lo) & hi.lt(tmax)).bitmask();
+    ((first | second) & hits, first & beyond & hits)
+}
+
+/// The number of candidates each of `rays` (at most [`PACKET_WIDTH`], all valid)
+/// meets over `spheres` (centre, radius) in its interval `(tmin, tmax)`: what the
+/// filtered query offers a filter that rejects every candidate.
+pub fn crossing_counts(rays: &[Ray], spheres: &[(Vec3, f32)]) -> [u32; PACKET_WIDTH] {
+    settle_lanes(rays, &[], spheres).1
+}
+
+/// `(blocked, counts)` for `rays` (at most [`PACKET_WIDTH`], all valid): the bits of
+/// the rays that one of the `opaque` spheres blocks (`intersect_sphere` in the
+/// interval, as an any-hit query), and for the others [`crossing_counts`] over
+/// `glass` (zero for a blocked ray).
+pub fn settle_lanes(
+    rays: &[Ray],
+    opaque: &[(Vec3, f32)],
+    glass: &[(Vec3, f32)],
+) -> (u32, [u32; PACKET_WIDTH]) {
+    debug_assert!(rays.len() <= PACKET_WIDTH);
+    let mut a = [[0.0f32; PACKET_WIDTH]; 8];
+    for (i, r) in rays.iter().enumerate() {
+        debug_assert!(r.is_valid());
+        a[0][i] = r.origin.x;
+        a[1][i] = r.origin.y;
+        a[2][i] = r.origin.z;
+        a[3][i] = r.dir.x;
+        a[4][i] = r.dir.y;
+        a[5][i] = r.dir.z;
+        a[6][i] = r.tmin;
+        a[7][i] = r.tmax;
+    }
+    let [ox, oy, oz, dx, dy, dz, tmin, tmax] = a.map(Packet::from_array);
+    let lanes = RayLanes {
+        o: [ox, oy, oz],
+        d: [dx, dy, dz],
+        tmin,
+    };
+    let all = ((1u64 << rays.len()) - 1) as u32;
+    let mut blocked = 0;
+    for &(center, radius) in opaque {
+        let live = all & !blocked;
+        if live == 0 {
+            break;
+        }
+        blocked |= sphere_lanes(&lanes, center, radius, tmax, live).1;
+    }
+    let active = all & !blocked;
+    let mut counts = [0u32; PACKET_WIDTH];
+    for &(center, radius) in glass {
+        if active == 0 {
+            break;
+        }
+        let (once, twice) = sphere_crossings(&lanes, center, radius, tmax, active);
+        for (i, c) in counts.iter_mut().enumerate() {
+            *c += (once >> i & 1) + (twice >> i & 1);
+        }
+    }
+    (blocked, counts)
+}
