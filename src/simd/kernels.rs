@@ -243,6 +243,29 @@ pub fn triangle_packet<L: Lanes, const SHARED: bool>(
     tmax: L,
     active: u32,
 ) -> (L, L, L, u32, u32) {
+    triangle_packet_by::<L, SHARED>(p, |c, k| g.v[c][k][lane], tmax, active)
+}
+
+/// [`triangle_packet`] for a triangle given by its corners (the tiny-scene lane path,
+/// `simd/tiny.rs`, whose triangles are not in leaf groups).
+#[inline(always)]
+pub fn triangle_packet_corners<L: Lanes, const SHARED: bool>(
+    p: &PacketShear<L>,
+    corners: &[Vec3; 3],
+    tmax: L,
+    active: u32,
+) -> (L, L, L, u32, u32) {
+    triangle_packet_by::<L, SHARED>(p, |c, k| corners[c][k], tmax, active)
+}
+
+/// The packet triangle test with corner coordinate `k` of corner `c` read by `corner`.
+#[inline(always)]
+fn triangle_packet_by<L: Lanes, const SHARED: bool>(
+    p: &PacketShear<L>,
+    corner: impl Fn(usize, usize) -> f32,
+    tmax: L,
+    active: u32,
+) -> (L, L, L, u32, u32) {
     let (kx, ky, kz) = (p.kx, p.ky, p.kz);
     // Corner coordinates read straight from the group's lane arrays. Before, the
     // corners were gathered into a `[Vec3; 3]` (`TriGroup4::corners`) and read by the
@@ -252,9 +275,9 @@ pub fn triangle_packet<L: Lanes, const SHARED: bool>(
     // (its primary pass) 245.5 M -> 233.3 M (-5.0 %).
     let rel = |c: usize, k: usize| {
         if SHARED {
-            L::splat(g.v[c][k][lane] - p.shared_origin[k])
+            L::splat(corner(c, k) - p.shared_origin[k])
         } else {
-            L::splat(g.v[c][k][lane]) - p.o[k]
+            L::splat(corner(c, k)) - p.o[k]
         }
     };
     let (a_x, a_y, a_z) = (rel(0, kx), rel(0, ky), rel(0, kz));

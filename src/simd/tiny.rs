@@ -4,14 +4,14 @@
 //!
 //! The rays of a group share the watertight test's axis permutation (the dominant
 //! direction axis and its sign, [`shear_key`]), so the triangle test is
-//! [`triangle_packet`] as the BVH packet kernels run it, with lanes whose edge function
+//! [`triangle_packet_corners`] as the BVH packet kernels run it, with lanes whose edge function
 //! is within its error bound of zero redone by the scalar test ([`intersect_triangle`],
 //! with its f64 fallback); the sphere test is [`sphere_lanes`], the lane twin of
 //! `intersect_sphere`. Both give the scalar answers bit for bit, and primitives are
 //! tested in index order with the same strict `t < tmax` update as the brute-force
 //! structure, so a lane's closest hit is `BruteForce::closest_hit`'s, ties included.
 
-use super::kernels::{PacketShear, RayLanes, sphere_lanes, triangle_packet};
+use super::kernels::{PacketShear, RayLanes, sphere_lanes, triangle_packet_corners};
 use super::{Lanes, PACKET_WIDTH, Packet};
 use crate::geometry::{Ray, RayQuery, dominant_axis, intersect_triangle};
 use glam::Vec3;
@@ -110,7 +110,7 @@ impl<'a> TinyGroup<'a> {
         let mut hit = 0u32;
         for (k, corners) in triangles.iter().enumerate() {
             let (t, u, v, mut bits, edge) =
-                triangle_packet::<TinyLanes, false>(&self.shear, corners, tmax, self.mask);
+                triangle_packet_corners::<TinyLanes, false>(&self.shear, corners, tmax, self.mask);
             let (mut t, mut u, mut v) = (t, u, v);
             if edge != 0 {
                 let (mut ta, mut ua, mut va) = (t.to_array(), u.to_array(), v.to_array());
@@ -169,7 +169,7 @@ impl<'a> TinyGroup<'a> {
                 break;
             }
             let (_, _, _, bits, edge) =
-                triangle_packet::<TinyLanes, false>(&self.shear, corners, self.tmax, live);
+                triangle_packet_corners::<TinyLanes, false>(&self.shear, corners, self.tmax, live);
             blocked |= bits;
             for_each_bit(edge, |i| {
                 let q = self.query(i);
