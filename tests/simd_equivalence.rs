@@ -7,6 +7,7 @@
 //! kernel's prefetch on, exact ones with the defaults, so both paths are exercised.
 
 mod common;
+#[path = "simd_equivalence/tiny_lanes.rs"]
 mod tiny_lanes;
 
 use common::*;
