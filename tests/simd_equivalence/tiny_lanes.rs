@@ -239,7 +239,8 @@ fn glass_crossings_in_lanes_are_the_filtered_query_candidates() {
             r.tmax = f32::INFINITY;
         }
         if i % 7 == 0 {
-            r.tmin = rng.range(0.0, 0.5);
+            // A later start, never past the end (a ray with tmin > tmax is invalid).
+            r.tmin = rng.range(0.0, 0.5).min(r.tmax);
         }
         rays.push(r);
     }
