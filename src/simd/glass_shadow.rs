@@ -9,7 +9,7 @@
 //! it lies beyond the near one and before `tmax` (the scalar code re-runs the test with
 //! `tmin` moved to the first root, which computes the same two roots).
 
-use super::kernels::{RayLanes, sphere_lanes};
+use super::kernels::{RayLanes, sphere_lanes, sphere_roots};
 use super::{Lanes, PACKET_WIDTH, Packet};
 use crate::geometry::Ray;
 use glam::Vec3;
@@ -24,27 +24,8 @@ pub fn sphere_crossings<L: Lanes>(
     tmax: L,
     active: u32,
 ) -> (u32, u32) {
-    let dot = |a: &[L; 3], b: &[L; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let f = [
-        r.o[0] - L::splat(center.x),
-        r.o[1] - L::splat(center.y),
-        r.o[2] - L::splat(center.z),
-    ];
-    let a = dot(&r.d, &r.d);
-    let b = L::splat(-1.0) * dot(&f, &r.d);
-    let ba = b / a;
-    let l = [f[0] + ba * r.d[0], f[1] + ba * r.d[1], f[2] + ba * r.d[2]];
-    let r2 = L::splat(radius * radius);
-    let disc = a * (r2 - dot(&l, &l));
-    let real = L::splat(0.0).le(disc).bitmask(); // false for NaN, as in the scalar test
-    let c = dot(&f, &f) - r2;
-    // copysign(sqrt(disc), b): the root is +0 or positive, so OR-ing b's sign bit in is exact.
-    let q = b + (disc.sqrt() | (b & L::splat(-0.0)));
-    let nonzero = !q.eq(L::splat(0.0)).bitmask();
-    let (t0, t1) = (c / q, q / a);
-    let swap = t0.gt(t1);
-    let (lo, hi) = (L::select(swap, t1, t0), L::select(swap, t0, t1));
-    let hits = real & nonzero & active;
+    let (lo, hi, roots) = sphere_roots(r, center, radius);
+    let hits = roots & active;
     let first = (lo.gt(r.tmin) & lo.lt(tmax)).bitmask();
     let second = (hi.gt(r.tmin) & hi.lt(tmax)).bitmask();
     let beyond = (hi.gt(lo) & hi.lt(tmax)).bitmask();

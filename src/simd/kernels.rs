@@ -339,6 +339,19 @@ pub fn sphere_lanes<L: Lanes>(
     tmax: L,
     active: u32,
 ) -> (L, u32) {
+    let (lo, hi, roots) = sphere_roots(r, center, radius);
+    let first = lo.gt(r.tmin) & lo.lt(tmax);
+    let second = hi.gt(r.tmin) & hi.lt(tmax);
+    let t = L::select(first, lo, hi);
+    (t, (first | second).bitmask() & roots & active)
+}
+
+/// The two roots of every lane's ray against one sphere, in order, and the bits of the
+/// lanes that have them (a real discriminant, a non-zero `q`): the scalar
+/// `intersect_sphere`'s operations in its order, shared by [`sphere_lanes`] and the glass
+/// crossings (`simd/glass_shadow.rs`).
+#[inline(always)]
+pub fn sphere_roots<L: Lanes>(r: &RayLanes<L>, center: Vec3, radius: f32) -> (L, L, u32) {
     let dot = |a: &[L; 3], b: &[L; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let f = [
         r.o[0] - L::splat(center.x),
@@ -359,8 +372,5 @@ pub fn sphere_lanes<L: Lanes>(
     let (t0, t1) = (c / q, q / a);
     let swap = t0.gt(t1);
     let (lo, hi) = (L::select(swap, t1, t0), L::select(swap, t0, t1));
-    let first = lo.gt(r.tmin) & lo.lt(tmax);
-    let second = hi.gt(r.tmin) & hi.lt(tmax);
-    let t = L::select(first, lo, hi);
-    (t, (first | second).bitmask() & real & nonzero & active)
+    (lo, hi, real & nonzero)
 }
