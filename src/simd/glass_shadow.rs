@@ -10,7 +10,7 @@
 //! `tmin` moved to the first root, which computes the same two roots).
 
 use super::kernels::{RayLanes, sphere_lanes, sphere_roots};
-use super::{Lanes, PACKET_WIDTH, Packet};
+use super::{Lanes, PACKET_WIDTH};
 use crate::geometry::Ray;
 use glam::Vec3;
 
@@ -49,24 +49,7 @@ pub fn settle_lanes(
     glass: &[(Vec3, f32)],
 ) -> (u32, [u32; PACKET_WIDTH]) {
     debug_assert!(rays.len() <= PACKET_WIDTH);
-    let mut a = [[0.0f32; PACKET_WIDTH]; 8];
-    for (i, r) in rays.iter().enumerate() {
-        debug_assert!(r.is_valid());
-        a[0][i] = r.origin.x;
-        a[1][i] = r.origin.y;
-        a[2][i] = r.origin.z;
-        a[3][i] = r.dir.x;
-        a[4][i] = r.dir.y;
-        a[5][i] = r.dir.z;
-        a[6][i] = r.tmin;
-        a[7][i] = r.tmax;
-    }
-    let [ox, oy, oz, dx, dy, dz, tmin, tmax] = a.map(Packet::from_array);
-    let lanes = RayLanes {
-        o: [ox, oy, oz],
-        d: [dx, dy, dz],
-        tmin,
-    };
+    let (lanes, tmax) = RayLanes::gather(rays.iter().inspect(|r| debug_assert!(r.is_valid())));
     let all = ((1u64 << rays.len()) - 1) as u32;
     let mut blocked = 0;
     for &(center, radius) in opaque {

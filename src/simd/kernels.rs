@@ -2,9 +2,9 @@
 //! order, lane by lane, so that results agree bit for bit with the scalar oracle (Rust
 //! never fuses a multiply and an add on its own, and neither do these kernels).
 
-use super::{F4, Lanes};
+use super::{F4, Lanes, PACKET_WIDTH, Packet};
 use crate::geometry::triangle_err as err;
-use crate::geometry::{PrimHit, RayQuery, intersect_triangle};
+use crate::geometry::{PrimHit, Ray, RayQuery, intersect_triangle};
 use glam::Vec3;
 
 /// Four triangles of a leaf, structure-of-arrays: `v[corner][axis][lane]`.
@@ -324,6 +324,32 @@ pub struct RayLanes<L: Lanes> {
     pub o: [L; 3],
     pub d: [L; 3],
     pub tmin: L,
+}
+
+impl RayLanes<Packet> {
+    /// Up to [`PACKET_WIDTH`] rays gathered into lanes, in order, with their interval
+    /// ends; lanes past the last ray hold zeros.
+    #[inline(always)]
+    pub fn gather<'r>(rays: impl IntoIterator<Item = &'r Ray>) -> (Self, Packet) {
+        let mut a = [[0.0f32; PACKET_WIDTH]; 8];
+        for (i, r) in rays.into_iter().enumerate() {
+            a[0][i] = r.origin.x;
+            a[1][i] = r.origin.y;
+            a[2][i] = r.origin.z;
+            a[3][i] = r.dir.x;
+            a[4][i] = r.dir.y;
+            a[5][i] = r.dir.z;
+            a[6][i] = r.tmin;
+            a[7][i] = r.tmax;
+        }
+        let [ox, oy, oz, dx, dy, dz, tmin, tmax] = a.map(Packet::from_array);
+        let lanes = RayLanes {
+            o: [ox, oy, oz],
+            d: [dx, dy, dz],
+            tmin,
+        };
+        (lanes, tmax)
+    }
 }
 
 /// A packet against one sphere: the SIMD twin of `geometry::intersect_sphere`, the

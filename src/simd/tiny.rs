@@ -52,21 +52,12 @@ impl<'a> TinyGroup<'a> {
     #[inline]
     pub fn new(rays: &'a [Ray], ids: &'a [u32], key: usize) -> TinyGroup<'a> {
         debug_assert!(ids.len() <= TINY_WIDTH);
-        let mut a = [[0.0f32; TINY_WIDTH]; 8];
-        for (i, &id) in ids.iter().enumerate() {
+        let (lanes, tmax) = RayLanes::gather(ids.iter().map(|&id| {
             let r = &rays[id as usize];
             debug_assert_eq!(shear_key(r), Some(key));
-            a[0][i] = r.origin.x;
-            a[1][i] = r.origin.y;
-            a[2][i] = r.origin.z;
-            a[3][i] = r.dir.x;
-            a[4][i] = r.dir.y;
-            a[5][i] = r.dir.z;
-            a[6][i] = r.tmin;
-            a[7][i] = r.tmax;
-        }
-        let [ox, oy, oz, dx, dy, dz, tmin, tmax] = a.map(TinyLanes::from_array);
-        let (o, d) = ([ox, oy, oz], [dx, dy, dz]);
+            r
+        }));
+        let RayLanes { o, d, tmin } = lanes;
         // The permutation of `RayQuery::new`: kx, ky follow kz, swapped when d[kz] < 0.
         let kz = key / 2;
         let mut kx = (kz + 1) % 3;
