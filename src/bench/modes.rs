@@ -1,0 +1,336 @@
+//! The tracing modes under test: one ray, packets, half packets, streams, and the
+//! mode names `bench --modes` accepts.
+
+use crate::accel::{
+    Accel, AccelKind, Bvh, BvhNode, NodeWidth, Prefetch, QNode, Triangles, WideNode, Width,
+};
+use crate::geometry::{Hit, Ray, RayPacket};
+
+/// A tracing mode under test: how a batch of rays (one 8x8 tile, 4x4-block ordered,
+/// compacted to valid rays) is traced.
+pub trait TraceMode: Send + Sync {
+    fn name(&self) -> &'static str;
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]);
+    /// Whether the mode traces SoA packets ([`closest_packet`](Self::closest_packet)),
+    /// so the harness generates rays straight into lanes, as Embree's does for
+    /// `rtcIntersect16`; otherwise it generates a slice of rays.
+    fn takes_packets(&self) -> bool {
+        false
+    }
+    /// One packet of rays in SoA form.
+    fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+        let aos: [Ray; 16] = std::array::from_fn(|k| rays.ray(k));
+        self.closest(&aos[..rays.len], out);
+    }
+    fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
+        let aos: [Ray; 16] = std::array::from_fn(|k| rays.ray(k));
+        self.occluded(&aos[..rays.len], out);
+    }
+    /// Whether the mode takes a whole band's rays as one batch (stream modes, as
+    /// Embree's `rtcIntersect1M`), instead of one tile's at a time.
+    fn takes_band(&self) -> bool {
+        false
+    }
+    fn build_ms(&self) -> f64;
+    /// Bytes of the structure traced (nodes and leaves).
+    fn memory_bytes(&self) -> usize;
+}
+
+/// One ray at a time through [`Accel::closest_hit`] / [`Accel::any_hit`].
+pub struct SingleRay {
+    pub name: &'static str,
+    pub accel: Box<dyn Accel>,
+}
+
+impl TraceMode for SingleRay {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.accel.closest_hit(r);
+        }
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.accel.any_hit(r);
+        }
+    }
+
+    fn build_ms(&self) -> f64 {
+        self.accel.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.accel.info().memory_bytes
+    }
+}
+
+/// The batch entry points of [`Accel`] (packet kernels where the structure has them).
+pub struct Batched {
+    pub name: &'static str,
+    pub accel: Box<dyn Accel>,
+}
+
+impl TraceMode for Batched {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.accel.closest_hit_batch(rays, out);
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        self.accel.any_hit_batch(rays, out);
+    }
+    fn takes_packets(&self) -> bool {
+        true
+    }
+    fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+        self.accel.closest_hit_packet(rays, out);
+    }
+    fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
+        self.accel.any_hit_packet(rays, out);
+    }
+    fn build_ms(&self) -> f64 {
+        self.accel.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.accel.info().memory_bytes
+    }
+}
+
+/// The BVH8's packet kernels with a tuning (see [`PACKET_TUNING_MODES`]).
+pub struct HalfPackets {
+    pub name: &'static str,
+    /// Trace 8-ray halves.
+    pub half: bool,
+    pub bvh: Bvh<Triangles, 8>,
+}
+
+impl TraceMode for HalfPackets {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        if self.half {
+            self.bvh.closest_hit_batch8(rays, out);
+        } else {
+            self.bvh.closest_hit_batch(rays, out);
+        }
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        if self.half {
+            self.bvh.any_hit_batch8(rays, out);
+        } else {
+            self.bvh.any_hit_batch(rays, out);
+        }
+    }
+    fn takes_packets(&self) -> bool {
+        true
+    }
+    fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
+        if self.half {
+            self.bvh.closest_hit_packet8(rays, out);
+        } else {
+            self.bvh.closest_hit_packet(rays, out);
+        }
+    }
+    fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
+        if self.half {
+            self.bvh.any_hit_packet8(rays, out);
+        } else {
+            self.bvh.any_hit_packet(rays, out);
+        }
+    }
+    fn build_ms(&self) -> f64 {
+        self.bvh.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.bvh.info().memory_bytes
+    }
+}
+
+/// The stream entry points of [`Accel`]: a band's valid rays as one batch.
+pub struct Streamed {
+    pub name: &'static str,
+    pub accel: Box<dyn Accel>,
+}
+
+impl TraceMode for Streamed {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.accel.closest_hit_stream(rays, out);
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        self.accel.any_hit_stream(rays, out);
+    }
+    fn takes_band(&self) -> bool {
+        true
+    }
+    fn build_ms(&self) -> f64 {
+        self.accel.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.accel.info().memory_bytes
+    }
+}
+
+/// The modes `packet-render bench` runs by default, by name.
+pub const MODES: &[&str] = &[
+    "scalar-bvh2",
+    "bvh4-single",
+    "bvh4-packet",
+    "bvh4-stream",
+    "bvh8-single",
+    "bvh8-packet",
+    "bvh8-stream",
+];
+
+/// The same kernels on compressed nodes (`bvh4c`, `bvh8c`: child boxes quantised to 8
+/// bits per plane), run when asked for by name.
+pub const COMPRESSED_MODES: &[&str] = &[
+    "bvh4c-single",
+    "bvh4c-packet",
+    "bvh4c-stream",
+    "bvh8c-single",
+    "bvh8c-packet",
+    "bvh8c-stream",
+];
+
+/// Every N-wide mode with node prefetching forced on (`+pf`) or off (`+nopf`) for its
+/// kernel, whatever [`Prefetch::default`] says: the A/B of the prefetch.
+pub const PREFETCH_MODES: &[&str] = &[
+    "bvh4-single+pf",
+    "bvh4-single+nopf",
+    "bvh4-packet+pf",
+    "bvh4-packet+nopf",
+    "bvh4-stream+pf",
+    "bvh4-stream+nopf",
+    "bvh8-single+pf",
+    "bvh8-single+nopf",
+    "bvh8-packet+pf",
+    "bvh8-packet+nopf",
+    "bvh8-stream+pf",
+    "bvh8-stream+nopf",
+    "bvh4c-single+pf",
+    "bvh4c-single+nopf",
+    "bvh4c-packet+pf",
+    "bvh4c-packet+nopf",
+    "bvh4c-stream+pf",
+    "bvh4c-stream+nopf",
+    "bvh8c-single+pf",
+    "bvh8c-single+nopf",
+    "bvh8c-packet+pf",
+    "bvh8c-packet+nopf",
+    "bvh8c-stream+pf",
+    "bvh8c-stream+nopf",
+];
+
+/// Tuning variants of the BVH8's packet kernels: `packet8` traces each 16-ray packet
+/// as two 8-ray halves (`F8` lanes, AVX2's width, Embree's `rtcOccluded8` shape); `@K`
+/// sets the ray-by-ray threshold (a packet part with fewer than K active lanes finishes
+/// its subtree ray by ray; Embree's hybrid kernels switch at 7 of 8 lanes).
+///
+/// Not shown to win, so the defaults stay (16 lanes, threshold 3). Bunny, 1 thread, 5
+/// passes, two runs on the loaded AVX2 machine (cpu 0.62-0.69), shadow medians Mrays/s:
+/// `bvh8-packet` 4.06 and 7.26 (first and last mode of one run: the noise), 4.27 and
+/// 3.87; `packet8` 4.06, 5.24; `@5` 4.02, 4.37; `@8` 3.93, 5.61; `packet8@5` 4.03,
+/// 4.59; `packet8@7` 5.03, 4.05. Instructions (callgrind, `examples/stream_profile
+/// bunny.obj MODE shadow 1`) of the occlusion kernel: 16 lanes 328.0 M, `@8` 329.8 M,
+/// `packet8` 346.3 M (+5.6 %), `packet8@5` 350.2 M. Kept for a quiet-machine A/B.
+pub const PACKET_TUNING_MODES: &[&str] = &[
+    "bvh8-packet8",
+    "bvh8-packet@2",
+    "bvh8-packet@5",
+    "bvh8-packet@8",
+    "bvh8-packet@12",
+    "bvh8-packet8@2",
+    "bvh8-packet8@5",
+    "bvh8-packet8@7",
+];
+
+/// The name of a mode `bench` knows, as a `'static` string.
+pub fn known_mode(name: &str) -> Option<&'static str> {
+    MODES
+        .iter()
+        .chain(COMPRESSED_MODES)
+        .chain(PREFETCH_MODES)
+        .chain(PACKET_TUNING_MODES)
+        .copied()
+        .find(|&m| m == name)
+}
+
+/// An N-wide BVH over `tris` with node type `T`, prefetching in `kernel` forced to
+/// `prefetch` where given.
+fn wide_accel<const N: usize, T: WideNode<N>>(
+    tris: Triangles,
+    kernel: &str,
+    prefetch: Option<bool>,
+) -> Box<dyn Accel>
+where
+    Width<N>: NodeWidth,
+{
+    let mut bvh = Bvh::<Triangles, N, T>::build(tris);
+    if let Some(on) = prefetch {
+        let mut p = Prefetch::default();
+        match kernel {
+            "single" => p.single = on,
+            "packet" => p.packet = on,
+            _ => p.stream = on,
+        }
+        bvh.set_prefetch(p);
+    }
+    Box::new(bvh)
+}
+
+/// Builds a mode over `tris` (the mesh in file order): `scalar-bvh2`, or
+/// `<structure>-<kernel>[+pf|+nopf]` with structure `bvh4`, `bvh8`, `bvh4c` or `bvh8c`
+/// and kernel `single`, `packet` or `stream`.
+pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
+    let name = known_mode(name)?;
+    let tris = tris.clone();
+    if name == "scalar-bvh2" {
+        return Some(Box::new(SingleRay {
+            name,
+            accel: AccelKind::Bvh2.build(tris),
+        }));
+    }
+    let (name_base, min_active) = match name.split_once('@') {
+        Some((b, k)) => (b, k.parse::<u32>().ok()),
+        None => (name, None),
+    };
+    if let Some(("bvh8", kernel @ ("packet" | "packet8"))) = name_base.split_once('-')
+        && (kernel == "packet8" || min_active.is_some())
+    {
+        let mut bvh = Bvh::<Triangles, 8>::build(tris);
+        if let Some(k) = min_active {
+            bvh.set_packet_min_active([k; 2]);
+        }
+        return Some(Box::new(HalfPackets {
+            name,
+            half: kernel == "packet8",
+            bvh,
+        }));
+    }
+    let (base, prefetch) = match name.split_once('+') {
+        None => (name, None),
+        Some((b, "pf")) => (b, Some(true)),
+        Some((b, _)) => (b, Some(false)),
+    };
+    let (structure, kernel) = base.split_once('-')?;
+    let accel = match structure {
+        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch),
+        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch),
+        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch),
+        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch),
+        _ => return None,
+    };
+    Some(match kernel {
+        "single" => Box::new(SingleRay { name, accel }),
+        "packet" => Box::new(Batched { name, accel }),
+        "stream" => Box::new(Streamed { name, accel }),
+        _ => return None,
+    })
+}

@@ -1,0 +1,360 @@
+//! One fixed set of primary, shadow and diffuse rays over a mesh, traced in 8x8 tiles
+//! and bands of 8 rows, with the checksums other tracers must reproduce.
+
+use super::cpu_time;
+use super::modes::TraceMode;
+use super::timing::{BUSY_SHARE, Measured, Timing};
+use super::workload::normalize;
+use super::workload::{BenchCamera, Framing, Workload, cosine_dir, pixel_uniforms};
+use crate::accel::Triangles;
+use crate::geometry::{Ray, RayPacket};
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Per-pixel primary results: `t` and triangle (`u32::MAX` for a miss).
+#[derive(Clone, Debug)]
+pub struct PrimaryHits {
+    pub t: Vec<f32>,
+    pub prim: Vec<u32>,
+}
+
+/// Checksums of one workload pass.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Checksums {
+    pub rays: u64,
+    pub hits_or_occluded: u64,
+    pub sum_t: f64,
+}
+
+const TILE: u32 = 8;
+const BAND: u32 = 8;
+
+/// The fixed ray set over one mesh.
+pub struct Protocol {
+    pub tris: Triangles,
+    pub framing: Framing,
+    pub camera: BenchCamera,
+    /// Geometric normals per triangle (file order), the protocol's `n`.
+    pub normals: Vec<Vec3>,
+}
+
+/// Pixel coordinates of an 8x8 tile at (tx, ty) in 4x4-block order, clipped to the image.
+fn tile_pixels(tx: u32, ty: u32, w: u32, h: u32, out: &mut Vec<(u32, u32)>) {
+    out.clear();
+    for by in (0..TILE).step_by(4) {
+        for bx in (0..TILE).step_by(4) {
+            for y in 0..4 {
+                for x in 0..4 {
+                    let (px, py) = (tx + bx + x, ty + by + y);
+                    if px < w && py < h {
+                        out.push((px, py));
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Protocol {
+    pub fn new(positions: &[Vec3], tris: Triangles, width: u32, height: u32) -> Self {
+        let framing = Framing::new(positions);
+        let camera = BenchCamera::new(&framing, width, height);
+        let normals = (0..tris.v0.len())
+            .map(|i| normalize((tris.v1[i] - tris.v0[i]).cross(tris.v2[i] - tris.v0[i])))
+            .collect();
+        Protocol {
+            tris,
+            framing,
+            camera,
+            normals,
+        }
+    }
+
+    fn pixels(&self) -> usize {
+        (self.camera.width * self.camera.height) as usize
+    }
+
+    /// The secondary ray of pixel `i` for `workload`, from its primary hit.
+    #[inline]
+    fn secondary_ray(
+        &self,
+        workload: Workload,
+        x: u32,
+        y: u32,
+        dir: Vec3,
+        t: f32,
+        prim: u32,
+    ) -> Ray {
+        let cam = &self.camera;
+        let p = cam.eye + dir * t;
+        let mut n = self.normals[prim as usize];
+        if n.dot(dir) > 0.0 {
+            n = -n;
+        }
+        let eps = (1e-4 * self.framing.diagonal) as f32;
+        let o = p + n * eps;
+        match workload {
+            Workload::Shadow => {
+                let to = self.framing.light.as_vec3() - o;
+                let tmax = to.length();
+                Ray::segment(o, to * (1.0 / tmax), 0.0, tmax)
+            }
+            _ => {
+                let (u1, u2) = pixel_uniforms(y * cam.width + x);
+                Ray::new(o, cosine_dir(n, u1, u2))
+            }
+        }
+    }
+
+    /// One pass of `workload` with `mode`; writes per-pixel results into `t_out` (hit
+    /// distance or NaN for a miss; for shadow rays 1.0 occluded / 0.0 free) and
+    /// `prim_out`. Returns the number of rays traced.
+    pub fn pass(
+        &self,
+        mode: &dyn TraceMode,
+        workload: Workload,
+        primary: Option<&PrimaryHits>,
+        t_out: &mut [f32],
+        prim_out: &mut [u32],
+    ) -> u64 {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let band_len = (BAND * w) as usize;
+        t_out
+            .par_chunks_mut(band_len)
+            .zip(prim_out.par_chunks_mut(band_len))
+            .enumerate()
+            .with_max_len(1)
+            .map(|(band, (t_band, prim_band))| {
+                let y0 = band as u32 * BAND;
+                let mut pixels = Vec::with_capacity(64);
+                // A tile's valid rays in order, as four SoA packets of sixteen for packet
+                // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
+                let soa = mode.takes_packets();
+                // Stream modes: the band's valid rays and their pixels, traced at the end.
+                let band_mode = mode.takes_band();
+                let mut band_rays = Vec::new();
+                let mut band_slots = Vec::new();
+                let mut packets = [RayPacket::default(); 4];
+                let mut rays = Vec::with_capacity(64);
+                let mut camera = RayPacket::default();
+                let mut slots = [0usize; 64];
+                let mut hits = [None; 16];
+                let mut occ = [false; 16];
+                let mut count = 0u64;
+                for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
+                    for tx in (0..w).step_by(TILE as usize) {
+                        tile_pixels(tx, ty, w, h, &mut pixels);
+                        rays.clear();
+                        let mut n = 0;
+                        for (b, block) in pixels.chunks(16).enumerate() {
+                            let local = |(x, y): (u32, u32)| ((y - y0) * w + x) as usize;
+                            if workload == Workload::Primary {
+                                self.camera.packet_into(block, &mut packets[b]);
+                                if !soa {
+                                    rays.extend((0..block.len()).map(|k| packets[b].ray(k)));
+                                }
+                                for &px in block {
+                                    slots[n] = local(px);
+                                    n += 1;
+                                }
+                                continue;
+                            }
+                            let Some(p) = primary else {
+                                unreachable!("secondary workloads need primary hits")
+                            };
+                            // Secondary rays start from the camera rays' hits.
+                            self.camera.packet_into(block, &mut camera);
+                            for (k, &(x, y)) in block.iter().enumerate() {
+                                let i = (y * w + x) as usize;
+                                if p.prim[i] == u32::MAX {
+                                    t_band[local((x, y))] = f32::NAN;
+                                    prim_band[local((x, y))] = u32::MAX;
+                                    continue;
+                                }
+                                let dir =
+                                    Vec3::new(camera.dir[0][k], camera.dir[1][k], camera.dir[2][k]);
+                                let r = self.secondary_ray(workload, x, y, dir, p.t[i], p.prim[i]);
+                                if soa {
+                                    packets[n / 16].set(n % 16, &r);
+                                } else {
+                                    rays.push(r);
+                                }
+                                slots[n] = local((x, y));
+                                n += 1;
+                            }
+                        }
+                        count += n as u64;
+                        if band_mode {
+                            band_rays.extend_from_slice(&rays[..n]);
+                            band_slots.extend_from_slice(&slots[..n]);
+                            continue;
+                        }
+                        for b in 0..n.div_ceil(16) {
+                            let len = (n - 16 * b).min(16);
+                            packets[b].len = len;
+                            let slots = &slots[16 * b..16 * b + len];
+                            let rays = if soa {
+                                &[][..]
+                            } else {
+                                &rays[16 * b..16 * b + len]
+                            };
+                            if workload == Workload::Shadow {
+                                if soa {
+                                    mode.occluded_packet(&packets[b], &mut occ);
+                                } else {
+                                    mode.occluded(rays, &mut occ[..len]);
+                                }
+                                for (k, &s) in slots.iter().enumerate() {
+                                    t_band[s] = if occ[k] { 1.0 } else { 0.0 };
+                                    prim_band[s] = 0;
+                                }
+                            } else {
+                                if soa {
+                                    mode.closest_packet(&packets[b], &mut hits);
+                                } else {
+                                    mode.closest(rays, &mut hits[..len]);
+                                }
+                                for (k, &s) in slots.iter().enumerate() {
+                                    (t_band[s], prim_band[s]) = match hits[k] {
+                                        Some(hh) => (hh.t, hh.prim),
+                                        None => (f32::NAN, u32::MAX),
+                                    };
+                                }
+                            }
+                        }
+                    }
+                }
+                if band_mode {
+                    self.trace_band(mode, workload, &band_rays, &band_slots, t_band, prim_band);
+                }
+                count
+            })
+            .sum()
+    }
+
+    /// A stream mode's band: `rays` traced as one batch, the answer of ray `k` written
+    /// to band pixel `slots[k]`.
+    fn trace_band(
+        &self,
+        mode: &dyn TraceMode,
+        workload: Workload,
+        rays: &[Ray],
+        slots: &[usize],
+        t_band: &mut [f32],
+        prim_band: &mut [u32],
+    ) {
+        if workload == Workload::Shadow {
+            let mut occ = vec![false; rays.len()];
+            mode.occluded(rays, &mut occ);
+            for (&o, &s) in occ.iter().zip(slots) {
+                t_band[s] = if o { 1.0 } else { 0.0 };
+                prim_band[s] = 0;
+            }
+        } else {
+            let mut hits = vec![None; rays.len()];
+            mode.closest(rays, &mut hits);
+            for (h, &s) in hits.iter().zip(slots) {
+                (t_band[s], prim_band[s]) = match h {
+                    Some(hh) => (hh.t, hh.prim),
+                    None => (f32::NAN, u32::MAX),
+                };
+            }
+        }
+    }
+
+    /// The untimed primary pass that shadow and diffuse rays start from.
+    pub fn primary_hits(&self, mode: &dyn TraceMode) -> PrimaryHits {
+        let mut t = vec![0.0; self.pixels()];
+        let mut prim = vec![0; self.pixels()];
+        self.pass(mode, Workload::Primary, None, &mut t, &mut prim);
+        PrimaryHits { t, prim }
+    }
+
+    /// Checksums of a pass's results, summed in f64 in pixel order.
+    pub fn checksums(workload: Workload, rays: u64, t: &[f32], prim: &[u32]) -> Checksums {
+        let mut c = Checksums {
+            rays,
+            hits_or_occluded: 0,
+            sum_t: 0.0,
+        };
+        for (tt, pp) in t.iter().zip(prim) {
+            match workload {
+                Workload::Shadow => {
+                    if *pp != u32::MAX && *tt == 1.0 {
+                        c.hits_or_occluded += 1;
+                    }
+                }
+                _ => {
+                    if *pp != u32::MAX {
+                        c.hits_or_occluded += 1;
+                        c.sum_t += *tt as f64;
+                    }
+                }
+            }
+        }
+        c
+    }
+
+    /// Times `timing.reps` passes after a warm-up (see [`Timing`]); returns the
+    /// checksums, the Mrays/s of each pass and the CPU share of the timed passes.
+    pub fn measure(
+        &self,
+        mode: &dyn TraceMode,
+        workload: Workload,
+        primary: Option<&PrimaryHits>,
+        timing: &Timing,
+    ) -> Measured {
+        let threads = rayon::current_num_threads();
+        let mut t = vec![0.0; self.pixels()];
+        let mut prim = vec![0; self.pixels()];
+        let mut best: Option<(Vec<f64>, f64)> = None;
+        let mut rays = 0;
+        let mut attempts = 0;
+        for _ in 0..=timing.retry_busy {
+            attempts += 1;
+            // Warm-up: caches, page faults, the clock ramping up; at least one pass.
+            let warm = Instant::now();
+            loop {
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                if warm.elapsed().as_secs_f64() >= timing.warmup_s {
+                    break;
+                }
+            }
+            let mut secs = Vec::with_capacity(timing.reps);
+            // The wall span encloses both CPU-clock reads, so for one thread the share
+            // cannot exceed 1 by the passes' bookkeeping between the timed intervals
+            // (with passes of microseconds, comparing against the sum of the passes
+            // alone gave 1.06 once under load).
+            let span = Instant::now();
+            let c0 = cpu_time::process_cpu_seconds();
+            for _ in 0..timing.reps {
+                let start = Instant::now();
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                secs.push(start.elapsed().as_secs_f64());
+            }
+            let cpu = cpu_time::process_cpu_seconds()
+                .zip(c0)
+                .map(|(c1, c0)| c1 - c0);
+            let util = cpu_time::utilisation(cpu, span.elapsed().as_secs_f64(), threads);
+            // NaN (no clock) never retries and never replaces a measured share.
+            if best.as_ref().is_none_or(|b| util > b.1) {
+                best = Some((secs, util));
+            }
+            if best
+                .as_ref()
+                .is_none_or(|b| b.1.is_nan() || b.1 >= BUSY_SHARE)
+            {
+                break;
+            }
+        }
+        let (secs, cpu_util) = best.expect("at least one attempt");
+        Measured {
+            checksums: Self::checksums(workload, rays, &t, &prim),
+            rates: secs.iter().map(|s| rays as f64 / s / 1e6).collect(),
+            cpu_util,
+            attempts,
+        }
+    }
+}
