@@ -14,3 +14,11 @@ pub fn bin() -> Command {
 pub fn run(args: &[&str]) -> Output {
     bin().args(args).output().expect("binary runs")
 }
+
+/// The stdout of a `--json` run: one JSON object per line.
+pub fn json_lines(o: &Output) -> Vec<serde_json::Value> {
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect()
+}

@@ -1,7 +1,7 @@
 //! The `packet-render` binary as a user meets it: renders, stats, bench output, and
 //! bad input that exits non-zero with a located message and writes nothing.
 
-use crate::common::bin::{bin, run};
+use crate::common::bin::{bin, json_lines, run};
 use crate::common::temp::temp_dir;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -189,10 +189,7 @@ fn bench_prints_the_protocol_fields_and_modes_agree() {
         "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
-        .collect();
+    let rows = json_lines(&o);
     assert_eq!(rows.len(), 21, "7 modes x 3 workloads");
     let fields = [
         "tracer",
@@ -244,10 +241,7 @@ fn accel_compare_prints_one_json_row_per_structure_with_equal_checksums() {
         "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
-        .collect();
+    let rows = json_lines(&o);
     let names: Vec<&str> = rows
         .iter()
         .map(|r| r["structure"].as_str().unwrap())
@@ -346,10 +340,7 @@ fn interrupted_render_leaves_no_image_and_no_temp_file() {
 fn precision_prints_one_json_row_per_case_and_kernel() {
     let o = run(&["precision", "--rays", "50", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let rows = json_lines(&o);
     assert!(rows.len() >= 3 * 10, "{} rows", rows.len());
     for r in &rows {
         assert!(r["t_rel_max"].as_f64().unwrap() < 1e-3, "{r}");
@@ -671,10 +662,7 @@ fn bench_triangles_runs_the_procedural_mesh_of_that_size_with_cpu_share_and_memo
         "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let rows: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
-        .collect();
+    let rows = json_lines(&o);
     assert_eq!(rows.len(), 6, "2 modes x 3 workloads");
     for r in &rows {
         // the tessellation's nearest count: within about 2 sqrt(n) above the request
