@@ -17,10 +17,10 @@ pub struct GridOptions {
     /// `res_a = clamp(round(3 * cbrt(n) * e_a / e_max), 1, 1024)` for a scene box of
     /// extents `e` (about `3 cbrt(n)` cells along the longest axis, proportionally fewer
     /// along the others; computed in f64, so any finite extent works), scaled down
-    /// until the cell count is at most [`max_cells`]`(n)`, then halved on every axis
+    /// until the cell count is at most `max_cells``(n)`, then halved on every axis
     /// while the cell references would exceed `max(32 n, 2^20)`, which bounds memory
     /// for degenerate inputs. An explicit resolution is only halved while its cell
-    /// count exceeds [`MAX_CELLS`].
+    /// count exceeds `MAX_CELLS`.
     pub resolution: Option<[u32; 3]>,
     /// Skip primitives this ray already tested in an earlier cell.
     pub mailbox: bool,

@@ -21,7 +21,7 @@ use std::time::Instant;
 /// Build parameters of a [`KdTree`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct KdTreeOptions {
-    /// Bins per axis of the SAH sweep (at most [`MAX_BINS`]).
+    /// Bins per axis of the SAH sweep (at most `MAX_BINS`).
     pub bins: usize,
     pub traversal_cost: f32,
     pub intersection_cost: f32,

@@ -8,7 +8,7 @@ use std::f32::consts::{PI, TAU};
 /// per shading point, which gives soft shadows (Cook, Porter, Carpenter 1984).
 ///
 /// Area lights emit radiance `radiance` from one side (quad: along `edge1 × edge2`;
-/// disk: along `normal`) or outwards (sphere). [`SceneBuilder::add_light`]
+/// disk: along `normal`) or outwards (sphere). [`SceneBuilder::add_light`](crate::scene::SceneBuilder::add_light)
 /// (super::SceneBuilder::add_light) also adds matching emissive geometry, so camera and
 /// reflection rays see the light.
 #[derive(Clone, Copy, Debug, PartialEq)]

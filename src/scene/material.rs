@@ -145,7 +145,7 @@ impl Material {
         self.albedo_at(p - outward * inset)
     }
 
-    /// Diffuse albedo and specular colour at a hit: [`albedo_on_surface`]
+    /// Diffuse albedo and specular colour at a hit: [`albedo_on_surface`](Self::albedo_on_surface)
     /// (Self::albedo_on_surface), then each multiplied by its texture at `uv` if the
     /// material has one (the MTL rule: `map_Kd` times `Kd`).
     pub fn colours_on_surface(

@@ -18,7 +18,7 @@ use glam::Vec3;
 #[repr(C, align(64))]
 pub struct BvhNode<const N: usize> {
     pub planes: [[f32; N]; 6],
-    /// Child references: an interior node's index, or [`LEAF`] | count << 27 | first.
+    /// Child references: an interior node's index, or `LEAF` | count << 27 | first.
     pub children: [u32; N],
 }
 
@@ -50,7 +50,7 @@ pub trait WideNode<const N: usize>: Copy + Send + Sync + std::fmt::Debug + 'stat
     fn from_exact(node: &BvhNode<N>) -> Self;
     /// The six plane arrays `min_x, min_y, min_z, max_x, max_y, max_z`.
     fn planes(&self) -> Self::Planes<'_>;
-    /// Child references ([`EMPTY_CHILD`] for an unused slot).
+    /// Child references (`EMPTY_CHILD` for an unused slot).
     fn children(&self) -> &[u32; N];
 
     /// Bounds of child slot `c`, as the traversal sees them.

@@ -31,7 +31,7 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
 }
 
 /// Loads a mesh file by extension: `.ply` through [`load_ply`] (its vertex colours are
-/// dropped), anything else as OBJ through [`load_obj`].
+/// dropped), anything else as OBJ through [`load_obj`](super::load_obj).
 pub fn load_mesh(path: &Path) -> Result<ObjMesh> {
     load_mesh_with(path, &mut TextureCache::new())
 }

@@ -1,6 +1,6 @@
 //! Scene loading: TOML scene files (format documented in `scenes/README.md`) and
 //! OBJ/MTL meshes. Every error names the file, the line and what was expected; every
-//! scene goes through [`SceneBuilder::finish`] last.
+//! scene goes through [`SceneBuilder::finish`](crate::scene::SceneBuilder::finish) last.
 
 mod entry;
 mod environment_map;
