@@ -128,13 +128,12 @@ pub(crate) fn shade_queue(
     scratch: &mut ShadeScratch,
 ) {
     let scene = shader.scene;
-    for (i, hit) in hits.iter().enumerate() {
-        if hit.is_none() {
-            let slot = queue.slot[i] as usize;
-            sinks.acc[slot] += queue.weight[i] * scene.miss_radiance(queue.rays[i].dir);
-        }
-    }
     scratch.batch.build(scene, &queue.rays, hits);
+    // The misses, from the batch's material pass (one pass over the hits, not two).
+    for i in scratch.batch.misses() {
+        let slot = queue.slot[i] as usize;
+        sinks.acc[slot] += queue.weight[i] * scene.miss_radiance(queue.rays[i].dir);
+    }
     let groups = std::mem::take(&mut scratch.batch.groups);
     for (material, range) in &groups {
         match lanes {
