@@ -320,11 +320,24 @@ fn shade_group_lanes(
     let batch = &scratch.batch;
     let albedo = &mut scratch.albedo;
     albedo.clear();
+    let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
+    // Mirrors and clear glass draw no random numbers: their child rays are built in
+    // lanes in the loop below, from the lane group's loads (each queue receives only
+    // its kind, in hit order, whatever else is queued in between). Glossy and
+    // translucent lobes go through the scalar shader, hit by hit, after the hit's
+    // light samples (the order of its random stream).
+    let spawns = spawns && depth < shader.max_depth;
+    let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
+    let mut children = ChildPaths {
+        throughput: [Vec3::ZERO; 16],
+        path: [0; 16],
+    };
     let mut j = range.start;
     while j < range.end {
         let n = (range.end - j).min(16);
         let active = if n == 16 { 0xffff } else { (1u32 << n) - 1 };
         let ng = batch.ng.lanes(j);
+        let d = batch.dir.lanes(j);
         let mut s = SurfaceLanes {
             p: batch.p.lanes(j),
             p_error: batch.p_error.lanes(j),
@@ -332,7 +345,7 @@ fn shade_group_lanes(
             ns: batch.ns.lanes(j),
             base: batch.base.lanes(j),
             smooth: Packet::new(batch.smooth[j..j + 16].try_into().expect("16 lanes")),
-            wo: batch.dir.lanes(j).negated(),
+            wo: d.negated(),
             albedo: V3::splat(m.diffuse),
         };
         if lit && let Some(c) = &m.checker {
@@ -368,6 +381,10 @@ fn shade_group_lanes(
             let q = q as usize;
             let (slot, weight) = (queue.slot[q], queue.weight[q]);
             paths.set(i, slot, weight, queue.rays[q].time);
+            if lane_children {
+                children.throughput[i] = queue.throughput[q];
+                children.path[i] = queue.path[q];
+            }
             let a = Vec3::new(ax[i], ay[i], az[i]);
             albedo.push(a);
             let local = if lit {
@@ -390,15 +407,13 @@ fn shade_group_lanes(
                 push_shadow(q, &sl, &paths, weight, &mut sinks.rays);
             }
         }
+        if lane_children {
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
+            specular_children(shader, m, n, &s, d, front, &paths, &children, sinks);
+        }
         j += 16;
     }
 
-    let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
-    // Mirrors and clear glass draw no random numbers: their child rays are built in
-    // lanes after the loop. Glossy and translucent lobes go through the scalar shader,
-    // hit by hit, after the hit's light samples (the order of its random stream).
-    let spawns = spawns && depth < shader.max_depth;
-    let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
     let plan = &shader.plan;
     // Per hit below: the quad lights and the scalar child lobes. A group with neither
     // (every hit of whitted_base) skips the loop and its per-hit gathers.
@@ -496,9 +511,6 @@ fn shade_group_lanes(
             push_children(&mut sinks.next, &sinks.emitted, slot, weight);
         }
     }
-    if lane_children {
-        specular_children(shader, m, range, batch, queue, sinks);
-    }
 }
 
 /// The child rays of one kind from one lane group, in the order the scalar shader
@@ -536,7 +548,8 @@ impl Children {
     fn flush(
         &self,
         q: &mut Option<RayQueue>,
-        paths: &ChildPaths,
+        paths: &LanePaths,
+        children: &ChildPaths,
         origin: &[[f32; 16]; 3],
         dir: &[[f32; 16]; 3],
     ) {
@@ -555,123 +568,106 @@ impl Children {
             time: paths.time[i],
         }));
         q.slot.extend(lanes.iter().map(|&i| paths.slot[i]));
-        q.weight.extend(
-            lanes
-                .iter()
-                .zip(&self.w)
-                .map(|(&i, &w)| paths.weight[i] * w),
-        );
+        let weight = |i: usize| {
+            let w = &paths.weight;
+            Vec3::new(w[0][i], w[1][i], w[2][i])
+        };
+        q.weight
+            .extend(lanes.iter().zip(&self.w).map(|(&i, &w)| weight(i) * w));
         q.throughput.extend_from_slice(&self.tp[..n]);
         q.path.extend(
             lanes
                 .iter()
                 .zip(&self.branch)
-                .map(|(&i, &b)| child_path(paths.path[i], b)),
+                .map(|(&i, &b)| child_path(children.path[i], b)),
         );
     }
 }
 
-/// Per lane of a group: what the ray that made the hit passes on to its children.
+/// Per lane of a group, besides its [`LanePaths`]: what the ray that made the hit
+/// passes on to its children.
 struct ChildPaths {
-    slot: [u32; 16],
-    weight: [Vec3; 16],
     throughput: [Vec3; 16],
     path: [u64; 16],
-    time: [f32; 16],
 }
 
-/// The child rays of the hits `range` of `batch` on the mirror or clear glass `m`
-/// (no glossy or translucent lobe), as `Shader::emit_children` emits them: the origins
-/// and directions 16 hits at a time in lanes (`simd::specular`, bit for bit the scalar
-/// optics), then per hit, in hit order, the weights and the contribution cutoff with
-/// the scalar rules, and per lane group one extend of each queue array per kind.
+/// The child rays of the `n` hits `s` (one lane group, ray directions `d`, side
+/// `front`) on the mirror or clear glass `m` (no glossy or translucent lobe), as
+/// `Shader::emit_children` emits them: the origins and directions in lanes
+/// (`simd::specular`, bit for bit the scalar optics), then per hit, in hit order, the
+/// weights and the contribution cutoff with the scalar rules, and one extend of each
+/// queue array per kind.
 ///
 /// Measured (perf, whitted_aa3x3, 1 thread): pushing each child ray through
 /// `RayQueue::push` (five arrays, each a capacity check) right where it was decided was
-/// about a tenth of `shade_group_lanes`.
+/// about a tenth of `shade_group_lanes`; run as a second pass over the group's hits it
+/// loaded the surface lanes and gathered the paths' data a second time.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn specular_children(
     shader: &Shader,
     m: &crate::scene::Material,
-    range: std::ops::Range<usize>,
-    batch: &HitBatch,
-    queue: &RayQueue,
+    n: usize,
+    s: &SurfaceLanes,
+    d: V3,
+    front: Packet,
+    paths: &LanePaths,
+    cp: &ChildPaths,
     sinks: &mut Sinks,
 ) {
     let mirror = m.mirror != Vec3::ZERO;
     let transmissive = m.is_transmissive();
     let min = shader.min_contribution;
     let arr = |v: &V3| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
-    let mut paths = ChildPaths {
-        slot: [0; 16],
-        weight: [Vec3::ZERO; 16],
-        throughput: [Vec3::ZERO; 16],
-        path: [0; 16],
-        time: [0.0; 16],
-    };
-    let mut j = range.start;
-    while j < range.end {
-        let n = (range.end - j).min(16);
-        let (p, p_error) = (batch.p.lanes(j), batch.p_error.lanes(j));
-        let (ng, ns, d) = (batch.ng.lanes(j), batch.ns.lanes(j), batch.dir.lanes(j));
-        // Every reflected direction leaves on the facing side: one origin for them all.
-        let out = arr(&lane_offset(p, p_error, ng, ng));
-        let reflected = arr(&specular::reflection_dir(d, ns, ng));
-        let glass = transmissive.then(|| {
-            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
-            let g = specular::glass(d, ns, ng, front, m.ior);
-            // Refraction leaves into the far side: offset against the facing normal.
-            let inside = arr(&lane_offset(p, p_error, ng, ng.negated()));
-            (
-                g.reflectance.to_array(),
-                arr(&g.refracted),
-                g.tir.to_bitmask(),
-                inside,
-            )
-        });
-        for (i, &q) in batch.ray[j..j + n].iter().enumerate() {
-            let q = q as usize;
-            paths.slot[i] = queue.slot[q];
-            paths.weight[i] = queue.weight[q];
-            paths.throughput[i] = queue.throughput[q];
-            paths.path[i] = queue.path[q];
-            paths.time[i] = queue.rays[q].time;
+    let (p, p_error, ng, ns) = (s.p, s.p_error, s.ng, s.ns);
+    // Every reflected direction leaves on the facing side: one origin for them all.
+    let out = arr(&lane_offset(p, p_error, ng, ng));
+    let reflected = arr(&specular::reflection_dir(d, ns, ng));
+    let glass = transmissive.then(|| {
+        let g = specular::glass(d, ns, ng, front, m.ior);
+        // Refraction leaves into the far side: offset against the facing normal.
+        let inside = arr(&lane_offset(p, p_error, ng, ng.negated()));
+        (
+            g.reflectance.to_array(),
+            arr(&g.refracted),
+            g.tir.to_bitmask(),
+            inside,
+        )
+    });
+    let mut reflection = Children::new();
+    let mut refraction = Children::new();
+    for i in 0..n.min(16) {
+        let throughput = cp.throughput[i];
+        let mut branch = 0;
+        if mirror {
+            let tp = throughput * m.mirror;
+            if tp.max_element() >= min {
+                reflection.add(i, m.mirror, tp, &mut branch);
+            }
         }
-        let mut reflection = Children::new();
-        let mut refraction = Children::new();
-        for i in 0..n {
-            let throughput = paths.throughput[i];
-            let mut branch = 0;
-            if mirror {
-                let tp = throughput * m.mirror;
+        if let Some((reflectance, _, tir, _)) = &glass {
+            let f = reflectance[i];
+            if f > 0.0 {
+                let tp = throughput * f;
                 if tp.max_element() >= min {
-                    reflection.add(i, m.mirror, tp, &mut branch);
+                    reflection.add(i, Vec3::splat(f), tp, &mut branch);
                 }
             }
-            if let Some((reflectance, _, tir, _)) = &glass {
-                let f = reflectance[i];
-                if f > 0.0 {
-                    let tp = throughput * f;
-                    if tp.max_element() >= min {
-                        reflection.add(i, Vec3::splat(f), tp, &mut branch);
-                    }
-                }
-                if tir >> i & 1 == 0 {
-                    let w = (1.0 - f) * m.transmission;
-                    let tp = throughput * w;
-                    if tp.max_element() >= min && w != Vec3::ZERO {
-                        refraction.add(i, w, tp, &mut branch);
-                    }
+            if tir >> i & 1 == 0 {
+                let w = (1.0 - f) * m.transmission;
+                let tp = throughput * w;
+                if tp.max_element() >= min && w != Vec3::ZERO {
+                    refraction.add(i, w, tp, &mut branch);
                 }
             }
         }
-        sinks.rays.reflection += reflection.n as u64;
-        sinks.rays.refraction += refraction.n as u64;
-        let next = &mut sinks.next;
-        reflection.flush(&mut next.reflection, &paths, &out, &reflected);
-        if let Some((_, refracted, _, inside)) = &glass {
-            refraction.flush(&mut next.refraction, &paths, inside, refracted);
-        }
-        j += 16;
+    }
+    sinks.rays.reflection += reflection.n as u64;
+    sinks.rays.refraction += refraction.n as u64;
+    let next = &mut sinks.next;
+    reflection.flush(&mut next.reflection, paths, cp, &out, &reflected);
+    if let Some((_, refracted, _, inside)) = &glass {
+        refraction.flush(&mut next.refraction, paths, cp, inside, refracted);
     }
 }
 
