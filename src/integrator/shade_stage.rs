@@ -8,8 +8,9 @@
 //! of quad lights with lanes over the light samples of one hit; all written straight
 //! into the per-light shadow queues. The child rays of mirrors and clear glass (no
 //! random numbers) are built 16 hits at a time in lanes (`simd::specular`: reflection,
-//! Schlick-Fresnel refraction, total internal reflection, both offset origins), then
-//! weighted, cut off and queued hit by hit with the scalar rules; glossy and
+//! Schlick-Fresnel refraction, total internal reflection, both offset origins) in the
+//! same pass over the group, then weighted and cut off hit by hit with the scalar
+//! rules and queued with one extend per queue array and lane group; glossy and
 //! translucent lobes come from the scalar [`Shader::emit_children`], hit by hit, after
 //! the direct light, so that a shading point draws its random numbers in the scalar
 //! order. Lanes repeat
