@@ -8,8 +8,9 @@
 //! of quad lights with lanes over the light samples of one hit; all written straight
 //! into the per-light shadow queues. The child rays of mirrors and clear glass (no
 //! random numbers) are built 16 hits at a time in lanes (`simd::specular`: reflection,
-//! Schlick-Fresnel refraction, total internal reflection, both offset origins), then
-//! weighted, cut off and queued hit by hit with the scalar rules; glossy and
+//! Schlick-Fresnel refraction, total internal reflection, both offset origins) in the
+//! same pass over the group, then weighted and cut off hit by hit with the scalar
+//! rules and queued with one extend per queue array and lane group; glossy and
 //! translucent lobes come from the scalar [`Shader::emit_children`], hit by hit, after
 //! the direct light, so that a shading point draws its random numbers in the scalar
 //! order. Lanes repeat
@@ -128,13 +129,12 @@ pub(crate) fn shade_queue(
     scratch: &mut ShadeScratch,
 ) {
     let scene = shader.scene;
-    for (i, hit) in hits.iter().enumerate() {
-        if hit.is_none() {
-            let slot = queue.slot[i] as usize;
-            sinks.acc[slot] += queue.weight[i] * scene.miss_radiance(queue.rays[i].dir);
-        }
-    }
     scratch.batch.build(scene, &queue.rays, hits);
+    // The misses, from the batch's material pass (one pass over the hits, not two).
+    for i in scratch.batch.misses() {
+        let slot = queue.slot[i] as usize;
+        sinks.acc[slot] += queue.weight[i] * scene.miss_radiance(queue.rays[i].dir);
+    }
     let groups = std::mem::take(&mut scratch.batch.groups);
     for (material, range) in &groups {
         match lanes {
@@ -245,7 +245,13 @@ impl LanePaths {
 /// sample `paths.slot[i]`, keeps the time `paths.time[i]`, and its contribution is
 /// scaled by `weight` (`paths`' weights as lanes; the same f32 product as the scalar
 /// `weight * contribution`). The queue's arrays are each extended once per call, from
-/// the set lanes in order.
+/// the set lanes in order: all sixteen (the common case: every hit of a floor or wall
+/// group faces the light) by a loop over constant lane indices, else lane by lane over
+/// the set bits.
+///
+/// Measured (perf, whitted_aa3x3, 1 thread): building each ray from the lane arrays at
+/// an index taken from the mask (a bounds check per field) and extending three arrays
+/// hit by hit was about a fifth of `shade_group_lanes`.
 fn push_shadow(
     q: &mut ShadowQueue,
     s: &ShadowLanes,
@@ -253,36 +259,43 @@ fn push_shadow(
     weight: V3,
     rays: &mut RayCounts,
 ) {
-    let mut bits = s.mask;
-    if bits == 0 {
+    let mask = s.mask & 0xffff;
+    if mask == 0 {
         return;
     }
-    let n = bits.count_ones() as usize;
+    let arr = |v: &V3| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
+    let o = arr(&s.origin);
+    let d = arr(&s.dir);
+    let c = arr(&s.contribution.times(weight));
+    let tmax = s.tmax.to_array();
+    let ray = |i: usize| Ray {
+        origin: Vec3::new(o[0][i], o[1][i], o[2][i]),
+        dir: Vec3::new(d[0][i], d[1][i], d[2][i]),
+        tmin: 0.0,
+        tmax: tmax[i],
+        time: paths.time[i],
+    };
+    let contribution = |i: usize| Vec3::new(c[0][i], c[1][i], c[2][i]);
+    if mask == 0xffff {
+        rays.shadow += 16;
+        q.rays.extend((0..16).map(ray));
+        q.slot.extend_from_slice(&paths.slot);
+        q.contribution.extend((0..16).map(contribution));
+        return;
+    }
+    let n = mask.count_ones() as usize;
     let mut set = [0usize; 16];
+    let mut bits = mask;
     for k in set.iter_mut().take(n) {
-        *k = bits.trailing_zeros() as usize;
+        // Below 16: `mask` has no higher bit.
+        *k = bits.trailing_zeros() as usize & 15;
         bits &= bits - 1;
     }
     let set = &set[..n];
-    let arr = |v: &V3| (v.x.to_array(), v.y.to_array(), v.z.to_array());
-    let (ox, oy, oz) = arr(&s.origin);
-    let (dx, dy, dz) = arr(&s.dir);
-    let (cx, cy, cz) = arr(&s.contribution.times(weight));
-    let tmax = s.tmax.to_array();
     rays.shadow += n as u64;
-    q.rays.extend(set.iter().map(|&i| {
-        let mut ray = Ray::segment(
-            Vec3::new(ox[i], oy[i], oz[i]),
-            Vec3::new(dx[i], dy[i], dz[i]),
-            0.0,
-            tmax[i],
-        );
-        ray.time = paths.time[i];
-        ray
-    }));
+    q.rays.extend(set.iter().map(|&i| ray(i)));
     q.slot.extend(set.iter().map(|&i| paths.slot[i]));
-    q.contribution
-        .extend(set.iter().map(|&i| Vec3::new(cx[i], cy[i], cz[i])));
+    q.contribution.extend(set.iter().map(|&i| contribution(i)));
 }
 
 /// One material group in lanes: local light and point lights 16 hits at a time, then
@@ -308,11 +321,24 @@ fn shade_group_lanes(
     let batch = &scratch.batch;
     let albedo = &mut scratch.albedo;
     albedo.clear();
+    let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
+    // Mirrors and clear glass draw no random numbers: their child rays are built in
+    // lanes in the loop below, from the lane group's loads (each queue receives only
+    // its kind, in hit order, whatever else is queued in between). Glossy and
+    // translucent lobes go through the scalar shader, hit by hit, after the hit's
+    // light samples (the order of its random stream).
+    let spawns = spawns && depth < shader.max_depth;
+    let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
+    let mut children = ChildPaths {
+        throughput: [Vec3::ZERO; 16],
+        path: [0; 16],
+    };
     let mut j = range.start;
     while j < range.end {
         let n = (range.end - j).min(16);
         let active = if n == 16 { 0xffff } else { (1u32 << n) - 1 };
         let ng = batch.ng.lanes(j);
+        let d = batch.dir.lanes(j);
         let mut s = SurfaceLanes {
             p: batch.p.lanes(j),
             p_error: batch.p_error.lanes(j),
@@ -320,7 +346,7 @@ fn shade_group_lanes(
             ns: batch.ns.lanes(j),
             base: batch.base.lanes(j),
             smooth: Packet::new(batch.smooth[j..j + 16].try_into().expect("16 lanes")),
-            wo: batch.dir.lanes(j).negated(),
+            wo: d.negated(),
             albedo: V3::splat(m.diffuse),
         };
         if lit && let Some(c) = &m.checker {
@@ -350,11 +376,17 @@ fn shade_group_lanes(
         // The camera sample, weight and time of each hit's ray, gathered once for the
         // shadow rays of every light.
         let mut paths = LanePaths::default();
-        for i in 0..n {
-            let q = batch.ray[j + i] as usize;
+        // The albedo lanes stored once (`V3::lane` stored all three vectors per hit).
+        let [ax, ay, az] = [s.albedo.x, s.albedo.y, s.albedo.z].map(|p| p.to_array());
+        for (i, &q) in batch.ray[j..j + n].iter().enumerate() {
+            let q = q as usize;
             let (slot, weight) = (queue.slot[q], queue.weight[q]);
             paths.set(i, slot, weight, queue.rays[q].time);
-            let a = s.albedo.lane(i);
+            if lane_children {
+                children.throughput[i] = queue.throughput[q];
+                children.path[i] = queue.path[q];
+            }
+            let a = Vec3::new(ax[i], ay[i], az[i]);
             albedo.push(a);
             let local = if lit {
                 m.emission + scene.ambient * a
@@ -376,17 +408,18 @@ fn shade_group_lanes(
                 push_shadow(q, &sl, &paths, weight, &mut sinks.rays);
             }
         }
+        if lane_children {
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
+            specular_children(shader, m, n, &s, d, front, &paths, &children, sinks);
+        }
         j += 16;
     }
 
-    let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
-    // Mirrors and clear glass draw no random numbers: their child rays are built in
-    // lanes after the loop. Glossy and translucent lobes go through the scalar shader,
-    // hit by hit, after the hit's light samples (the order of its random stream).
-    let spawns = spawns && depth < shader.max_depth;
-    let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
     let plan = &shader.plan;
-    for k in range.clone() {
+    // Per hit below: the quad lights and the scalar child lobes. A group with neither
+    // (every hit of whitted_base) skips the loop and its per-hit gathers.
+    let per_hit = (lit && !lanes.quads.is_empty()) || (spawns && !lane_children);
+    for k in range.clone().filter(|_| per_hit) {
         let q = batch.ray[k] as usize;
         let slot = queue.slot[q];
         let weight = queue.weight[q];
@@ -479,92 +512,163 @@ fn shade_group_lanes(
             push_children(&mut sinks.next, &sinks.emitted, slot, weight);
         }
     }
-    if lane_children {
-        specular_children(shader, m, range, batch, queue, sinks);
+}
+
+/// The child rays of one kind from one lane group, in the order the scalar shader
+/// queues them: per entry the lane, the child's weight and throughput and its branch
+/// number (what keys its path).
+struct Children {
+    n: usize,
+    lane: [usize; 32],
+    w: [Vec3; 32],
+    tp: [Vec3; 32],
+    branch: [u32; 32],
+}
+
+impl Children {
+    fn new() -> Self {
+        Children {
+            n: 0,
+            lane: [0; 32],
+            w: [Vec3::ZERO; 32],
+            tp: [Vec3::ZERO; 32],
+            branch: [0; 32],
+        }
+    }
+
+    fn add(&mut self, lane: usize, w: Vec3, tp: Vec3, branch: &mut u32) {
+        // At most two per hit (the mirror's and the glass's reflection), 16 hits.
+        let k = self.n & 31;
+        (self.lane[k], self.w[k], self.tp[k], self.branch[k]) = (lane & 15, w, tp, *branch);
+        self.n += 1;
+        *branch += 1;
+    }
+
+    /// The entries into the queue `q` (created on the first entry, as the scalar
+    /// `push_children` does), leaving from `origin` along `dir` (lane arrays).
+    fn flush(
+        &self,
+        q: &mut Option<RayQueue>,
+        paths: &LanePaths,
+        children: &ChildPaths,
+        origin: &[[f32; 16]; 3],
+        dir: &[[f32; 16]; 3],
+    ) {
+        let n = self.n.min(32);
+        if n == 0 {
+            return;
+        }
+        let q = q.get_or_insert_with(RayQueue::default);
+        let lanes = &self.lane[..n];
+        let at = |a: &[[f32; 16]; 3], i: usize| Vec3::new(a[0][i], a[1][i], a[2][i]);
+        q.rays.extend(lanes.iter().map(|&i| Ray {
+            origin: at(origin, i),
+            dir: at(dir, i),
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+            time: paths.time[i],
+        }));
+        q.slot.extend(lanes.iter().map(|&i| paths.slot[i]));
+        let weight = |i: usize| {
+            let w = &paths.weight;
+            Vec3::new(w[0][i], w[1][i], w[2][i])
+        };
+        q.weight
+            .extend(lanes.iter().zip(&self.w).map(|(&i, &w)| weight(i) * w));
+        q.throughput.extend_from_slice(&self.tp[..n]);
+        q.path.extend(
+            lanes
+                .iter()
+                .zip(&self.branch)
+                .map(|(&i, &b)| child_path(children.path[i], b)),
+        );
     }
 }
 
-/// The child rays of the hits `range` of `batch` on the mirror or clear glass `m`
-/// (no glossy or translucent lobe), as `Shader::emit_children` emits them: the origins
-/// and directions 16 hits at a time in lanes (`simd::specular`, bit for bit the scalar
-/// optics), then per hit, in hit order, the weights, the contribution cutoff and the
-/// queue writes with the scalar rules.
+/// Per lane of a group, besides its [`LanePaths`]: what the ray that made the hit
+/// passes on to its children.
+struct ChildPaths {
+    throughput: [Vec3; 16],
+    path: [u64; 16],
+}
+
+/// The child rays of the `n` hits `s` (one lane group, ray directions `d`, side
+/// `front`) on the mirror or clear glass `m` (no glossy or translucent lobe), as
+/// `Shader::emit_children` emits them: the origins and directions in lanes
+/// (`simd::specular`, bit for bit the scalar optics), then per hit, in hit order, the
+/// weights and the contribution cutoff with the scalar rules, and one extend of each
+/// queue array per kind.
+///
+/// Measured (perf, whitted_aa3x3, 1 thread): pushing each child ray through
+/// `RayQueue::push` (five arrays, each a capacity check) right where it was decided was
+/// about a tenth of `shade_group_lanes`; run as a second pass over the group's hits it
+/// loaded the surface lanes and gathered the paths' data a second time.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn specular_children(
     shader: &Shader,
     m: &crate::scene::Material,
-    range: std::ops::Range<usize>,
-    batch: &HitBatch,
-    queue: &RayQueue,
+    n: usize,
+    s: &SurfaceLanes,
+    d: V3,
+    front: Packet,
+    paths: &LanePaths,
+    cp: &ChildPaths,
     sinks: &mut Sinks,
 ) {
     let mirror = m.mirror != Vec3::ZERO;
     let transmissive = m.is_transmissive();
     let min = shader.min_contribution;
-    let arr = |v: &V3| (v.x.to_array(), v.y.to_array(), v.z.to_array());
-    let at = |a: &([f32; 16], [f32; 16], [f32; 16]), i: usize| Vec3::new(a.0[i], a.1[i], a.2[i]);
-    let mut j = range.start;
-    while j < range.end {
-        let n = (range.end - j).min(16);
-        let (p, p_error) = (batch.p.lanes(j), batch.p_error.lanes(j));
-        let (ng, ns, d) = (batch.ng.lanes(j), batch.ns.lanes(j), batch.dir.lanes(j));
-        // Every reflected direction leaves on the facing side: one origin for them all.
-        let out = arr(&lane_offset(p, p_error, ng, ng));
-        let reflected = arr(&specular::reflection_dir(d, ns, ng));
-        let glass = transmissive.then(|| {
-            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
-            let g = specular::glass(d, ns, ng, front, m.ior);
-            // Refraction leaves into the far side: offset against the facing normal.
-            let inside = arr(&lane_offset(p, p_error, ng, ng.negated()));
-            (
-                g.reflectance.to_array(),
-                arr(&g.refracted),
-                g.tir.to_bitmask(),
-                inside,
-            )
-        });
-        for i in 0..n {
-            let q = batch.ray[j + i] as usize;
-            let (slot, weight, path) = (queue.slot[q], queue.weight[q], queue.path[q]);
-            let (throughput, time) = (queue.throughput[q], queue.rays[q].time);
-            let mut branch = 0;
-            let mut push = |sinks: &mut Sinks, kind: ChildKind, dir, origin, w: Vec3, tp: Vec3| {
-                let mut ray = Ray::new(origin, dir);
-                ray.time = time;
-                let q = sinks.next[kind].get_or_insert_with(RayQueue::default);
-                q.push(ray, slot, weight * w, tp, child_path(path, branch));
-                branch += 1;
-            };
-            let reflected = at(&reflected, i);
-            let out = at(&out, i);
-            if mirror {
-                let tp = throughput * m.mirror;
+    let arr = |v: &V3| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
+    let (p, p_error, ng, ns) = (s.p, s.p_error, s.ng, s.ns);
+    // Every reflected direction leaves on the facing side: one origin for them all.
+    let out = arr(&lane_offset(p, p_error, ng, ng));
+    let reflected = arr(&specular::reflection_dir(d, ns, ng));
+    let glass = transmissive.then(|| {
+        let g = specular::glass(d, ns, ng, front, m.ior);
+        // Refraction leaves into the far side: offset against the facing normal.
+        let inside = arr(&lane_offset(p, p_error, ng, ng.negated()));
+        (
+            g.reflectance.to_array(),
+            arr(&g.refracted),
+            g.tir.to_bitmask(),
+            inside,
+        )
+    });
+    let mut reflection = Children::new();
+    let mut refraction = Children::new();
+    for i in 0..n.min(16) {
+        let throughput = cp.throughput[i];
+        let mut branch = 0;
+        if mirror {
+            let tp = throughput * m.mirror;
+            if tp.max_element() >= min {
+                reflection.add(i, m.mirror, tp, &mut branch);
+            }
+        }
+        if let Some((reflectance, _, tir, _)) = &glass {
+            let f = reflectance[i];
+            if f > 0.0 {
+                let tp = throughput * f;
                 if tp.max_element() >= min {
-                    sinks.rays.reflection += 1;
-                    push(sinks, ChildKind::Reflection, reflected, out, m.mirror, tp);
+                    reflection.add(i, Vec3::splat(f), tp, &mut branch);
                 }
             }
-            if let Some((reflectance, refracted, tir, inside)) = &glass {
-                let f = reflectance[i];
-                if f > 0.0 {
-                    let tp = throughput * f;
-                    if tp.max_element() >= min {
-                        sinks.rays.reflection += 1;
-                        let w = Vec3::splat(f);
-                        push(sinks, ChildKind::Reflection, reflected, out, w, tp);
-                    }
-                }
-                if tir >> i & 1 == 0 {
-                    let w = (1.0 - f) * m.transmission;
-                    let tp = throughput * w;
-                    if tp.max_element() >= min && w != Vec3::ZERO {
-                        sinks.rays.refraction += 1;
-                        let (t, o) = (at(refracted, i), at(inside, i));
-                        push(sinks, ChildKind::Refraction, t, o, w, tp);
-                    }
+            if tir >> i & 1 == 0 {
+                let w = (1.0 - f) * m.transmission;
+                let tp = throughput * w;
+                if tp.max_element() >= min && w != Vec3::ZERO {
+                    refraction.add(i, w, tp, &mut branch);
                 }
             }
         }
-        j += 16;
+    }
+    sinks.rays.reflection += reflection.n as u64;
+    sinks.rays.refraction += refraction.n as u64;
+    let next = &mut sinks.next;
+    reflection.flush(&mut next.reflection, paths, cp, &out, &reflected);
+    if let Some((_, refracted, _, inside)) = &glass {
+        refraction.flush(&mut next.refraction, paths, cp, inside, refracted);
     }
 }
 

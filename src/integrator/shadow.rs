@@ -536,6 +536,7 @@ fn blocks(scene: &Scene, ray: &Ray, through_glass: bool, hit: &SceneHit, t: &mut
 }
 
 /// The material index of a scene primitive.
+#[inline]
 pub fn material_of(scene: &Scene, prim: PrimRef) -> u32 {
     match prim {
         PrimRef::Triangle(t) => scene.mesh.material[t as usize],
