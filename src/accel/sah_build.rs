@@ -1324,12 +1324,12 @@ mod tests {
             let (mut two, mut other) = (Bins::new(), Bins::new());
             two.add_all_paired(&mut other, &src, nb.centroids.min, scale, bins_n);
             for bins in [&one, &two] {
-                for a in 0..3 {
-                    for k in 0..MAX_BINS {
-                        assert_eq!(bins.counts[a][k], want[a][k].0, "axis {a} bin {k}");
+                for (a, want_a) in want.iter().enumerate() {
+                    for (k, (count, bounds)) in want_a.iter().enumerate() {
+                        assert_eq!(bins.counts[a][k], *count, "axis {a} bin {k}");
                         assert_eq!(
                             box_bits(&bins.bounds(a, k)),
-                            box_bits(&want[a][k].1),
+                            box_bits(bounds),
                             "axis {a} bin {k} of {bins_n}"
                         );
                     }
