@@ -19,6 +19,7 @@
 use super::Bvh2BuildOptions;
 use super::Primitives;
 use crate::geometry::Aabb;
+use crate::simd::bin_box::BinBox;
 use glam::{BVec3A, BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -104,6 +105,12 @@ impl PrimRef {
         }
     }
 
+    /// The box in the bins' form.
+    #[inline(always)]
+    fn bin_box(&self) -> BinBox {
+        BinBox::new(self.min, self.max)
+    }
+
     /// The centre of the box: `0.5 * (min + max)`, as `Aabb::center`.
     #[inline(always)]
     fn centroid(&self) -> Vec3A {
@@ -172,18 +179,30 @@ struct Builder {
 pub(super) const MAX_BINS: usize = 32;
 const _: () = assert!(MAX_BINS.is_power_of_two());
 
-/// Per-axis bins of one node: bounds and primitive counts.
+/// Per-axis bins of one node: bounds and primitive counts. The bounds are
+/// [`BinBox`]es (maximum negated, one 8-lane minimum per update); [`Bins::bounds`]
+/// reads one back as a [`BBox`].
 #[derive(Clone)]
 struct Bins {
-    bounds: [[BBox; MAX_BINS]; 3],
+    boxes: [[BinBox; MAX_BINS]; 3],
     counts: [[u32; MAX_BINS]; 3],
 }
 
 impl Bins {
     fn new() -> Self {
         Bins {
-            bounds: [[BBox::EMPTY; MAX_BINS]; 3],
+            boxes: [[BinBox::EMPTY; MAX_BINS]; 3],
             counts: [[0; MAX_BINS]; 3],
+        }
+    }
+
+    /// The box of bin `k` on `axis`.
+    #[inline(always)]
+    fn bounds(&self, axis: usize, k: usize) -> BBox {
+        let b = &self.boxes[axis][k];
+        BBox {
+            min: b.min(),
+            max: b.max(),
         }
     }
 
@@ -196,7 +215,7 @@ impl Bins {
     fn merge_first(&mut self, o: &Bins, n: usize) {
         for a in 0..3 {
             for k in 0..n {
-                self.bounds[a][k].grow(&o.bounds[a][k]);
+                self.boxes[a][k].grow(&o.boxes[a][k]);
                 self.counts[a][k] += o.counts[a][k];
             }
         }
@@ -205,19 +224,19 @@ impl Bins {
     /// Empties the first `n` bins of each axis (the only ones a node uses).
     fn clear(&mut self, n: usize) {
         for a in 0..3 {
-            self.bounds[a][..n].fill(BBox::EMPTY);
+            self.boxes[a][..n].fill(BinBox::EMPTY);
             self.counts[a][..n].fill(0);
         }
     }
 
     #[inline(always)]
-    fn add(&mut self, k: [usize; 3], b: &BBox) {
+    fn add(&mut self, k: [usize; 3], b: &BinBox) {
         for (axis, &bin) in k.iter().enumerate() {
             // `bins_of` keeps `bin` below `bins <= MAX_BINS`; the mask only lets the
             // compiler drop the bounds checks (a compare and branch per axis).
             let bin = bin & (MAX_BINS - 1);
             self.counts[axis][bin] += 1;
-            self.bounds[axis][bin].grow(b);
+            self.boxes[axis][bin].grow(b);
         }
     }
 
@@ -226,7 +245,7 @@ impl Bins {
     fn add_all(&mut self, refs: &[PrimRef], lo: Vec3A, scale: Vec3A, bins_n: usize) {
         for r in refs {
             let k = bins_of(r.centroid(), lo, scale, bins_n);
-            self.add(k, &r.bounds());
+            self.add(k, &r.bin_box());
         }
     }
 
@@ -248,8 +267,8 @@ impl Bins {
             let (a, b) = (&p[0], &p[1]);
             let ka = bins_of(a.centroid(), lo, scale, bins_n);
             let kb = bins_of(b.centroid(), lo, scale, bins_n);
-            self.add(ka, &a.bounds());
-            other.add(kb, &b.bounds());
+            self.add(ka, &a.bin_box());
+            other.add(kb, &b.bin_box());
         }
         self.add_all(pairs.remainder(), lo, scale, bins_n);
         self.merge_first(other, bins_n);
@@ -324,16 +343,22 @@ pub(super) fn build_tree<P: Primitives>(
         u32::try_from(n).is_ok(),
         "at most 2^32 - 1 primitives per structure"
     );
-    let mut refs: Vec<PrimRef> = (0..n)
-        .into_par_iter()
-        .with_min_len(PARALLEL_THRESHOLD)
-        .map(|i| PrimRef::new(prims.bounds(i), i as u32))
-        .collect();
+    let mut refs = zeroed_refs(n);
+    refs.par_chunks_mut(PARALLEL_THRESHOLD)
+        .enumerate()
+        .for_each(|(c, chunk)| {
+            let first = c * PARALLEL_THRESHOLD;
+            for (k, r) in chunk.iter_mut().enumerate() {
+                let i = first + k;
+                *r = PrimRef::new(prims.bounds(i), i as u32);
+            }
+        });
     let mut ids = vec![0u32; n];
     if n == 0 {
         return (None, ids);
     }
-    let mut scratch = refs.clone();
+    // Written in full by the root's partition before anything reads it: no copy.
+    let mut scratch = zeroed_refs(n);
     let bs = opts.block_size.max(1);
     let builder = Builder {
         opts,
@@ -342,6 +367,52 @@ pub(super) fn build_tree<P: Primitives>(
     let nb = node_bounds(&refs);
     let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb);
     (Some(root), ids)
+}
+
+/// `n` zeroed references, allocated without being written (`calloc`: fresh pages from
+/// the kernel are already zero) and, on Linux, marked for transparent huge pages
+/// before their first touch.
+///
+/// Measured before (README "BVH build"): page faults were 5 % of a 1-thread build at
+/// 10^6 triangles, and the scratch array was a full copy of the references.
+fn zeroed_refs(n: usize) -> Vec<PrimRef> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let layout = std::alloc::Layout::array::<PrimRef>(n).expect("reference array size");
+    // SAFETY: `layout` has a non-zero size (n > 0, PrimRef is 32 bytes).
+    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<PrimRef>();
+    if ptr.is_null() {
+        std::alloc::handle_alloc_error(layout);
+    }
+    advise_huge_pages(ptr.cast(), layout.size());
+    // SAFETY: allocated by the global allocator with the layout of `n` PrimRefs, and
+    // all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
+    unsafe { Vec::from_raw_parts(ptr, n, n) }
+}
+
+/// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
+/// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
+/// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
+fn advise_huge_pages(ptr: *mut u8, len: usize) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        if len < 2 * HUGE {
+            return;
+        }
+        let start = (ptr as usize).next_multiple_of(HUGE);
+        let end = (ptr as usize + len) / HUGE * HUGE;
+        if end > start {
+            // SAFETY: the range lies inside one live allocation; MADV_HUGEPAGE only
+            // changes how its pages are backed, never their contents.
+            unsafe {
+                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (ptr, len);
 }
 
 /// Bounds and centroid bounds of `refs`.
@@ -506,10 +577,14 @@ impl Builder {
     /// Bins centroids on all three axes and sweeps for the cheapest plane.
     fn best_split(&self, refs: &[PrimRef], nb: &NodeBounds) -> Option<Chosen> {
         // Small nodes need few bins: at most two per primitive.
-        // Measured and not taken: Embree's count, min(32, 4 + n / 20), built the bunny
-        // in 34-35 ms against 38-41 ms (same run, busy machine) for a 0.24 % higher SAH
-        // cost (10.770 vs 10.744; 16.159 vs 16.092 at 10^6) and 3 % more leaves; left
-        // out to keep the trees as they were.
+        // Measured and not taken, twice: Embree's count, min(32, 4 + n / 20), builds
+        // faster for a higher SAH cost and 3 % more leaves. 2026-11-23: bunny 34-35 ms
+        // against 38-41 ms, SAH 10.770 vs 10.744 (16.159 vs 16.092 at 10^6).
+        // 2026-11-24 (with `BinBox` bins, load 8, CPU ms per build, medians of 3-6
+        // interleaved rounds): bunny 35.1 vs 39.3, 10^5 38.5 vs 43.5, 10^6 ~525 vs
+        // ~560; but `bench` bvh8-packet primary on the bunny gave a median of 4.00
+        // against 4.85 Mrays/s over 7 interleaved rounds (noisy, cpu share 0.2, yet
+        // lower in 5 of 7), so the trees were kept as they were.
         let bins_n = self.opts.bins.min(refs.len().max(4));
         let cb = &nb.centroids;
         let scale = bin_scale(cb, bins_n);
@@ -581,7 +656,7 @@ impl Builder {
         let (mut acc, mut cnt) = ([BBox::EMPTY; 3], Vec4::ZERO);
         for k in (1..bins_n).rev() {
             for (a, b) in acc.iter_mut().enumerate() {
-                b.grow(&bins.bounds[a][k]);
+                b.grow(&bins.bounds(a, k));
             }
             cnt += count(k);
             right_term[k] = areas3(&acc) * (cnt * inv_block).ceil();
@@ -596,7 +671,7 @@ impl Builder {
         let (mut acc, mut cnt) = ([BBox::EMPTY; 3], Vec4::ZERO);
         for k in 1..bins_n {
             for (a, b) in acc.iter_mut().enumerate() {
-                b.grow(&bins.bounds[a][k - 1]);
+                b.grow(&bins.bounds(a, k - 1));
             }
             cnt += count(k - 1);
             let valid = axis_ok & cnt.cmpne(Vec4::ZERO) & right_count[k].cmpne(Vec4::ZERO);
@@ -638,17 +713,17 @@ impl Builder {
             if scale[axis] == 0.0 {
                 continue;
             }
-            let (bounds, counts) = (&bins.bounds[axis][..bins_n], &bins.counts[axis][..bins_n]);
+            let counts = &bins.counts[axis][..bins_n];
             let (mut acc, mut cnt) = (BBox::EMPTY, 0);
             for k in (1..bins_n).rev() {
-                acc.grow(&bounds[k]);
+                acc.grow(&bins.bounds(axis, k));
                 cnt += counts[k];
                 right_term[k] = acc.area() * self.blocks(cnt);
                 right_empty[k] = cnt == 0;
             }
             let (mut acc, mut cnt) = (BBox::EMPTY, 0);
             for k in 1..bins_n {
-                acc.grow(&bounds[k - 1]);
+                acc.grow(&bins.bounds(axis, k - 1));
                 cnt += counts[k - 1];
                 if cnt == 0 || right_empty[k] {
                     continue;
@@ -691,9 +766,7 @@ fn areas3(b: &[BBox; 3]) -> Vec4 {
 /// Split `split` with its two sides' boxes, the unions of its bins on either side.
 fn chosen(bins: &Bins, split: Split) -> Chosen {
     let side = |r: std::ops::Range<usize>| {
-        bins.bounds[split.axis][r]
-            .iter()
-            .fold(BBox::EMPTY, |a, b| a.union(b))
+        r.fold(BBox::EMPTY, |a, k| a.union(&bins.bounds(split.axis, k)))
     };
     Chosen {
         split,
@@ -1054,7 +1127,7 @@ mod tests {
         for a in 0..3 {
             assert_eq!(one.counts[a], two.counts[a]);
             for k in 0..MAX_BINS {
-                assert_eq!(box_bits(&one.bounds[a][k]), box_bits(&two.bounds[a][k]));
+                assert_eq!(box_bits(&one.bounds(a, k)), box_bits(&two.bounds(a, k)));
             }
         }
         assert_eq!(one.counts[0].iter().sum::<u32>(), 1001);
@@ -1091,9 +1164,7 @@ mod tests {
                 }
                 real_splits += 1;
                 let union = |r: std::ops::Range<usize>| {
-                    bins.bounds[axis][r]
-                        .iter()
-                        .fold(BBox::EMPTY, |a, b| a.union(b))
+                    r.fold(BBox::EMPTY, |a, k| a.union(&bins.bounds(axis, k)))
                 };
                 let (l, r) = (node_bounds(&dst[..m]), node_bounds(&dst[m..]));
                 assert_eq!(box_bits(&union(0..bin)), box_bits(&l.bounds));
@@ -1227,6 +1298,56 @@ mod tests {
             }
         }
         assert!(compared > 300, "{compared} splits compared");
+    }
+
+    /// The bins (kept as [`BinBox`]es) against a plain reference: per axis and bin,
+    /// the count and the min/max fold of the boxes of the references [`bins_of`] puts
+    /// there, bit for bit, serial and paired, for several bin counts.
+    #[test]
+    fn bins_match_a_plain_fold_of_their_references() {
+        let src = refs_3d(1501);
+        let nb = node_bounds(&src);
+        for bins_n in [2, 5, 16, MAX_BINS] {
+            let scale = bin_scale(&nb.centroids, bins_n);
+            let mut want = vec![[(0u32, BBox::EMPTY); MAX_BINS]; 3];
+            for r in &src {
+                let k = bins_of(r.centroid(), nb.centroids.min, scale, bins_n);
+                for a in 0..3 {
+                    let (c, b) = &mut want[a][k[a]];
+                    *c += 1;
+                    b.min = b.min.min(r.bounds().min);
+                    b.max = b.max.max(r.bounds().max);
+                }
+            }
+            let mut one = Bins::new();
+            one.add_all(&src, nb.centroids.min, scale, bins_n);
+            let (mut two, mut other) = (Bins::new(), Bins::new());
+            two.add_all_paired(&mut other, &src, nb.centroids.min, scale, bins_n);
+            for bins in [&one, &two] {
+                for (a, want_a) in want.iter().enumerate() {
+                    for (k, (count, bounds)) in want_a.iter().enumerate() {
+                        assert_eq!(bins.counts[a][k], *count, "axis {a} bin {k}");
+                        assert_eq!(
+                            box_bits(&bins.bounds(a, k)),
+                            box_bits(bounds),
+                            "axis {a} bin {k} of {bins_n}"
+                        );
+                    }
+                }
+            }
+            let filled = want[0][..bins_n].iter().filter(|w| w.0 > 0).count();
+            assert!(filled == bins_n, "{filled} of {bins_n} bins filled");
+        }
+    }
+
+    /// The references' arrays come zeroed, at every size (huge-page advice from 4 MiB).
+    #[test]
+    fn zeroed_refs_are_zero() {
+        for n in [0, 1, 1000, (4 << 20) / 32 + 3] {
+            let v = zeroed_refs(n);
+            assert_eq!(v.len(), n);
+            assert!(bits(&v).iter().all(|&b| b == 0), "{n} references");
+        }
     }
 
     /// The shift gives the started blocks the division gives.

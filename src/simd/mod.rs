@@ -9,6 +9,7 @@
 //! Masks are lane vectors whose lanes are all-ones or all-zeros, as `wide` returns
 //! from comparisons; [`Lanes::bitmask`] turns one into an integer with bit `i` for lane `i`.
 
+pub mod bin_box;
 pub mod camera;
 pub mod compact;
 pub mod direct_light;

@@ -251,3 +251,27 @@ fn validate_rejects_a_box_rounded_the_wrong_way() {
         .expect_err("a shrunken box must be reported");
     assert!(e.contains("does not contain"), "{e}");
 }
+
+/// A mesh large enough for the builder's huge-page arrays (>= 4 MiB of references) and
+/// its parallel binning and partition builds trees that validate, with 1 and 2
+/// threads, and both trees are the same (the parallel paths write what the serial ones
+/// do).
+#[test]
+fn large_builds_validate_at_one_and_two_threads() {
+    let tris = crate::bench::BenchMesh::procedural(150_000).triangles;
+    assert!(tris.count() * 32 >= 4 << 20, "{} triangles", tris.count());
+    let build = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| Bvh8::build(tris.clone()))
+    };
+    let (one, two) = (build(1), build(2));
+    for bvh in [&one, &two] {
+        bvh.validate().expect("the tree validates");
+    }
+    let (a, b) = (one.info(), two.info());
+    assert_eq!((a.nodes, a.leaves), (b.nodes, b.leaves));
+    assert_eq!(a.sah_cost.to_bits(), b.sah_cost.to_bits());
+}

@@ -1,0 +1,149 @@
+//! The binned-SAH builder's bin box as one 8-lane vector: the minimum corner in lanes
+//! 0-3 and the *negated* maximum corner in lanes 4-7, so that growing a box by another
+//! is a single lane minimum (`-max(a, b) = min(-a, -b)` exactly, negation being exact).
+//! Embree's binner keeps its bins in this form for the same reason (one `min` per bin
+//! update on AVX); see Wald 2007, "On fast Construction of SAH-based Bounding Volume
+//! Hierarchies", for the binning itself.
+//!
+//! With AVX a grow is one 256-bit load-min-store; without it, two 128-bit minimums on
+//! the same lanes (the same values: the lanes are independent).
+
+use glam::{Vec3A, Vec4};
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+use std::arch::x86_64::{
+    __m256, _mm256_load_ps, _mm256_min_ps, _mm256_set_m128, _mm256_setr_ps, _mm256_store_ps,
+    _mm256_xor_ps,
+};
+
+/// A box as `[min.x, min.y, min.z, w, -max.x, -max.y, -max.z, w']` (the `w` lanes are
+/// carried along and never read).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub struct BinBox {
+    lo: Vec4,
+    neg_hi: Vec4,
+}
+
+const _: () = assert!(std::mem::size_of::<BinBox>() == 32);
+const _: () = assert!(std::mem::align_of::<BinBox>() == 32);
+const _: () = assert!(std::mem::offset_of!(BinBox, neg_hi) == 16);
+
+impl BinBox {
+    /// The empty box: growing it by `b` gives `b`.
+    pub const EMPTY: BinBox = BinBox {
+        lo: Vec4::splat(f32::INFINITY),
+        neg_hi: Vec4::splat(f32::INFINITY),
+    };
+
+    /// The box `[min, max]` (lanes `w` of both are kept as they are).
+    #[inline(always)]
+    pub fn new(min: Vec4, max: Vec4) -> BinBox {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+        {
+            // SAFETY: AVX is enabled at compile time (the cfg above).
+            unsafe {
+                let v = _mm256_set_m128(max.into(), min.into());
+                BinBox::from_m256(_mm256_xor_ps(v, sign_hi()))
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+        {
+            BinBox {
+                lo: min,
+                neg_hi: -max,
+            }
+        }
+    }
+
+    /// Grows this box by `o`: each lane `min(self, o)` with x86 `minps` operand order
+    /// (`o` where either is NaN), so the corners are `min(min, o.min)` and
+    /// `max(max, o.max)` as `maxps(max, o.max)` gives them, bit for bit.
+    #[inline(always)]
+    pub fn grow(&mut self, o: &BinBox) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+        // SAFETY: AVX is enabled at compile time; both boxes are 32-byte aligned
+        // (`repr(align(32))`), as the aligned load and store need.
+        unsafe {
+            let p = (self as *mut BinBox).cast::<f32>();
+            let v = _mm256_min_ps(
+                _mm256_load_ps(p),
+                _mm256_load_ps((o as *const BinBox).cast::<f32>()),
+            );
+            _mm256_store_ps(p, v);
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+        {
+            self.lo = self.lo.min(o.lo);
+            self.neg_hi = self.neg_hi.min(o.neg_hi);
+        }
+    }
+
+    /// The minimum corner.
+    #[inline(always)]
+    pub fn min(&self) -> Vec3A {
+        Vec3A::from_vec4(self.lo)
+    }
+
+    /// The maximum corner.
+    #[inline(always)]
+    pub fn max(&self) -> Vec3A {
+        -Vec3A::from_vec4(self.neg_hi)
+    }
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    #[inline(always)]
+    fn from_m256(v: __m256) -> BinBox {
+        // SAFETY: `BinBox` is 32 bytes of f32 lanes, as `__m256` is.
+        unsafe { std::mem::transmute::<__m256, BinBox>(v) }
+    }
+}
+
+/// Sign bits of lanes 4-7.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+#[inline(always)]
+fn sign_hi() -> __m256 {
+    // SAFETY: AVX is enabled at compile time.
+    unsafe { _mm256_setr_ps(0.0, 0.0, 0.0, 0.0, -0.0, -0.0, -0.0, -0.0) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bits(v: Vec3A) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// Grown box by box, the corners are exactly what `Vec3A::min`/`max` fold to (the
+    /// builder's plain boxes), signed zeros included.
+    #[test]
+    fn grow_matches_min_and_max_of_the_corners() {
+        let mut x = 0x9e37_79b9_u32;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            ((x % 2001) as f32 - 1000.0) * 0.25
+        };
+        let mut b = BinBox::EMPTY;
+        let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
+        for i in 0..500 {
+            let a = Vec3A::new(next(), next(), next());
+            let c = if i % 7 == 0 {
+                Vec3A::new(0.0, -0.0, 0.0)
+            } else {
+                a + Vec3A::new(next().abs(), next().abs(), next().abs())
+            };
+            let (mn, mx) = (a.min(c), a.max(c));
+            b.grow(&BinBox::new(mn.extend(7.0), mx.extend(-3.0)));
+            lo = lo.min(mn);
+            hi = hi.max(mx);
+            assert_eq!(bits(b.min()), bits(lo), "step {i}");
+            assert_eq!(bits(b.max()), bits(hi), "step {i}");
+        }
+        let e = BinBox::EMPTY;
+        assert_eq!(e.min(), Vec3A::splat(f32::INFINITY));
+        assert_eq!(e.max(), Vec3A::splat(f32::NEG_INFINITY));
+    }
+}
