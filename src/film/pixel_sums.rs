@@ -184,6 +184,10 @@ impl PixelSums {
     #[inline(always)]
     pub fn one_sample_value(w: f32, l: Vec3) -> Vec3 {
         // `+ 0.0` is what the f64 sum starting at +0 does to a -0 addend.
+        if w == 1.0 {
+            // The box filter: `l / 1` in f64 is `l`, exact in f32.
+            return l + Vec3::ZERO;
+        }
         let (num, den) = if w > 0.0 {
             ((w * l).as_dvec3() + 0.0, w as f64)
         } else {
@@ -386,9 +390,9 @@ mod tests {
             state
         };
         let specials = [0.0, -0.0, 1.0, f32::from_bits(1), 1e-39, 3e38, -2.5, 0.5];
-        let (mut checked, mut zero_weight) = (0, 0);
+        let (mut checked, mut zero_weight, mut unit_weight) = (0, 0, 0);
         for case in 0..20_000 {
-            let mut pick = |r: u64| -> f32 {
+            let pick = |r: u64| -> f32 {
                 if r % 4 == 0 {
                     specials[(r >> 8) as usize % specials.len()]
                 } else {
@@ -400,6 +404,8 @@ mod tests {
             };
             let w = if case % 5 == 0 {
                 0.0
+            } else if case % 5 == 1 {
+                1.0
             } else {
                 pick(next()).abs()
             };
@@ -417,10 +423,11 @@ mod tests {
             );
             checked += 1;
             zero_weight += (w == 0.0) as u32;
+            unit_weight += (w == 1.0) as u32;
         }
         assert!(
-            checked > 15_000 && zero_weight > 3_000,
-            "{checked} {zero_weight}"
+            checked > 15_000 && zero_weight > 3_000 && unit_weight > 3_000,
+            "{checked} {zero_weight} {unit_weight}"
         );
     }
 
