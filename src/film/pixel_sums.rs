@@ -393,7 +393,7 @@ mod tests {
         let (mut checked, mut zero_weight, mut unit_weight) = (0, 0, 0);
         for case in 0..20_000 {
             let pick = |r: u64| -> f32 {
-                if r % 4 == 0 {
+                if r.is_multiple_of(4) {
                     specials[(r >> 8) as usize % specials.len()]
                 } else {
                     let m = ((r >> 8) & 0xffff) as f32 / 65536.0 + 0.5;

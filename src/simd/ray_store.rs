@@ -31,7 +31,7 @@ pub fn append_rays(o: [&[f32]; 3], d: [&[f32]; 3], t: &[f32], n: usize, out: &mu
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     {
         let len = o.iter().chain(&d).map(|a| a.len()).min().unwrap_or(0);
-        if len % 8 == 0 && n <= len && t.len() >= n {
+        if len.is_multiple_of(8) && n <= len && t.len() >= n {
             out.reserve(n);
             // SAFETY: `reserve` made room for `n` more rays after `out.len()`; the
             // stores below write exactly rays `0..n` of it, every byte (the layout is
