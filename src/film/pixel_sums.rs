@@ -174,6 +174,28 @@ impl PixelSums {
         )
     }
 
+    /// The value of a pixel whose only eye sample has filter weight `w` and radiance
+    /// `l` (`w * l` finite): the bits [`value`](Self::value) returns after one
+    /// [`add_sample`](Self::add_sample), without building the sums. One addend is exact
+    /// in `f64` (24 significant bits), so the sums would be the addends themselves,
+    /// with a zero (of either sign) stored as `+0`, and `value` divides them by `Σ w`
+    /// (or, for `w == 0`, by the one sample). The 1-sample frame's film path
+    /// (`pixel_filter::resolve_pixels`); the test below holds it to the general one.
+    #[inline(always)]
+    pub fn one_sample_value(w: f32, l: Vec3) -> Vec3 {
+        // `+ 0.0` is what the f64 sum starting at +0 does to a -0 addend.
+        if w == 1.0 {
+            // The box filter: `l / 1` in f64 is `l`, exact in f32.
+            return l + Vec3::ZERO;
+        }
+        let (num, den) = if w > 0.0 {
+            ((w * l).as_dvec3() + 0.0, w as f64)
+        } else {
+            (l.as_dvec3() + 0.0, 1.0)
+        };
+        (num / den).as_vec3()
+    }
+
     /// Whether the sums went over to the long accumulators (for tests and stats).
     pub fn uses_long_accumulators(&self) -> bool {
         self.exact.is_some()
@@ -352,6 +374,60 @@ mod tests {
         assert!(
             fast > 50 && fell_back > 50,
             "fast {fast}, fell back {fell_back}"
+        );
+    }
+
+    /// The 1-sample shortcut gives the bits of the sums' own value, on weights and
+    /// radiance with zeros of both signs, subnormals, values near `f32::MAX` (whose
+    /// product overflows and is left out, as the filter drops it) and random ones.
+    #[test]
+    fn one_sample_value_equals_the_value_of_one_added_sample() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let specials = [0.0, -0.0, 1.0, f32::from_bits(1), 1e-39, 3e38, -2.5, 0.5];
+        let (mut checked, mut zero_weight, mut unit_weight) = (0, 0, 0);
+        for case in 0..20_000 {
+            let pick = |r: u64| -> f32 {
+                if r.is_multiple_of(4) {
+                    specials[(r >> 8) as usize % specials.len()]
+                } else {
+                    let m = ((r >> 8) & 0xffff) as f32 / 65536.0 + 0.5;
+                    let e = ((r >> 24) % 80) as i32 - 40;
+                    let sign = if (r >> 60) & 1 == 0 { 1.0 } else { -1.0 };
+                    sign * m * 2f32.powi(e)
+                }
+            };
+            let w = if case % 5 == 0 {
+                0.0
+            } else if case % 5 == 1 {
+                1.0
+            } else {
+                pick(next()).abs()
+            };
+            let l = Vec3::new(pick(next()), pick(next()), pick(next()));
+            if !(w * l).is_finite() {
+                continue;
+            }
+            let mut sums = PixelSums::default();
+            sums.add_sample(w, l);
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            assert_eq!(
+                bits(PixelSums::one_sample_value(w, l)),
+                bits(sums.value()),
+                "w {w:e}, l {l:?}"
+            );
+            checked += 1;
+            zero_weight += (w == 0.0) as u32;
+            unit_weight += (w == 1.0) as u32;
+        }
+        assert!(
+            checked > 15_000 && zero_weight > 3_000 && unit_weight > 3_000,
+            "{checked} {zero_weight} {unit_weight}"
         );
     }
 

@@ -48,35 +48,83 @@ pub(crate) fn resolve_pixel_into(
     }
 }
 
-/// The pixels of a tile at once: pixel `g` has the eye-sample offsets
-/// `offsets[g * eye..]`, the radiance `radiance[g * rays..]` (`rays` per pixel) and
-/// its sums at `pixels[at[g]]`. The same sums as [`resolve_pixel_into`] pixel by
-/// pixel; one ray per pixel (the common frame) runs as one flat loop.
+/// Where [`resolve_pixels`] puts a tile's pixels: their values, and (for a partial
+/// image, `--keep-sums`) their filter sums, each indexed by the pixel's row-major
+/// position in the tile.
+pub(crate) struct TileOut<'a> {
+    pub values: &'a mut [Vec3],
+    pub sums: Option<&'a mut [PixelSums]>,
+}
+
+/// The pixels of a tile at once, each with all its samples: pixel `g` has the
+/// eye-sample offsets `offsets[g * eye..]`, the radiance `radiance[g * rays..]`
+/// (`rays` per pixel) and its place `at[g]` in `out`. Each pixel's sums are built
+/// on the stack and resolved into its value there and then (kept in `out.sums` only
+/// when a partial image asks for them): no per-tile buffer of sums. One ray per pixel
+/// without kept sums (the common frame) skips the sums altogether
+/// ([`PixelSums::one_sample_value`], the same bits).
 pub(crate) fn resolve_pixels(
     plan: &SamplePlan,
     offsets: &[(f32, f32)],
     radiance: &[Vec3],
     at: &[u32],
     nonfinite: &mut u64,
-    pixels: &mut [PixelSums],
+    out: &mut TileOut,
 ) {
     let eye = plan.eye_rendered() as usize;
     let rays = eye * per_eye(plan);
+    if let Some(sums) = &mut out.sums {
+        for (g, &a) in at.iter().enumerate() {
+            let s = &mut sums[a as usize];
+            *s = PixelSums::default();
+            resolve_pixel_into(
+                plan,
+                &offsets[g * eye..(g + 1) * eye],
+                &radiance[g * rays..(g + 1) * rays],
+                nonfinite,
+                s,
+            );
+            out.values[a as usize] = s.value();
+        }
+        return;
+    }
     if rays == 1 {
         for ((&offset, &r), &a) in offsets.iter().zip(radiance).zip(at) {
-            add_single(plan, offset, r, nonfinite, &mut pixels[a as usize]);
+            out.values[a as usize] = single_value(plan, offset, r, nonfinite);
         }
         return;
     }
     for (g, &a) in at.iter().enumerate() {
+        let mut s = PixelSums::default();
         resolve_pixel_into(
             plan,
             &offsets[g * eye..(g + 1) * eye],
             &radiance[g * rays..(g + 1) * rays],
             nonfinite,
-            &mut pixels[a as usize],
+            &mut s,
         );
+        out.values[a as usize] = s.value();
     }
+}
+
+/// The value of a pixel with one eye sample of one ray: what [`add_single`] into
+/// empty sums and [`PixelSums::value`] give, bit for bit, and the same count of
+/// dropped samples.
+#[inline(always)]
+fn single_value(plan: &SamplePlan, (ox, oy): (f32, f32), r: Vec3, nonfinite: &mut u64) -> Vec3 {
+    let r = if r.is_finite() {
+        r
+    } else {
+        *nonfinite += 1;
+        Vec3::ZERO
+    };
+    let w = plan.filter.weight(ox - 0.5, oy - 0.5);
+    if !(w * r).is_finite() {
+        // Dropped: no sample, so the value of empty sums.
+        *nonfinite += 1;
+        return Vec3::ZERO;
+    }
+    PixelSums::one_sample_value(w, r)
 }
 
 /// One eye sample with one ray: no mean to take. The same sums as [`add_means`] with
@@ -157,10 +205,11 @@ mod tests {
         }
     }
 
-    /// With one ray per eye sample, the flat paths (`resolve_pixel_into`'s and
-    /// `resolve_pixels`' for one ray per pixel) give exactly the sums (compared
-    /// exactly) and the non-finite count of the general mean loop, on radiance with
-    /// NaN, infinities, signed zeros, tiny and huge components, for both filters.
+    /// With one ray per eye sample, the flat paths (`resolve_pixel_into`'s, and
+    /// `resolve_pixels`' with kept sums and without, whose 1-ray shortcut builds no
+    /// sums) give exactly the sums (compared exactly), the values (bit for bit) and
+    /// the non-finite count of the general mean loop, on radiance with NaN,
+    /// infinities, signed zeros, tiny and huge components, for both filters.
     #[test]
     fn single_ray_paths_equal_the_mean_loop() {
         let mut rng = PixelRng::new(11, 4);
@@ -196,16 +245,36 @@ mod tests {
                     let (o, r) = (&offsets[g * e..(g + 1) * e], &radiance[g * e..(g + 1) * e]);
                     add_means(&plan, o, r, &mut want_nf, sums);
                 }
-                // Pixels stored in reverse order, as a tile's blocks scatter them.
+                // Pixels stored in reverse order, as a tile's blocks scatter them;
+                // once keeping the sums (a partial image), once values only (the
+                // 1-ray shortcut for eye 1).
                 let at: Vec<u32> = (0..n).rev().collect();
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                let mut values = vec![Vec3::NAN; n as usize];
+                let mut out = TileOut {
+                    values: &mut values,
+                    sums: Some(&mut got),
+                };
+                resolve_pixels(&plan, &offsets, &radiance, &at, &mut got_nf, &mut out);
                 got.reverse();
-                resolve_pixels(&plan, &offsets, &radiance, &at, &mut got_nf, &mut got);
-                got.reverse();
+                values.reverse();
                 assert_eq!(got_nf, want_nf, "{filter} eye {eye}");
                 for (g, (a, b)) in got.iter().zip(&want).enumerate() {
                     assert_eq!(a, b, "{filter} eye {eye} pixel {g}");
-                    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
                     assert_eq!(bits(a.value()), bits(b.value()));
+                    assert_eq!(bits(values[g]), bits(b.value()));
+                }
+                let mut values = vec![Vec3::NAN; n as usize];
+                let mut out = TileOut {
+                    values: &mut values,
+                    sums: None,
+                };
+                let mut values_nf = 0;
+                resolve_pixels(&plan, &offsets, &radiance, &at, &mut values_nf, &mut out);
+                values.reverse();
+                assert_eq!(values_nf, want_nf, "{filter} eye {eye}");
+                for (g, (v, b)) in values.iter().zip(&want).enumerate() {
+                    assert_eq!(bits(*v), bits(b.value()), "{filter} eye {eye} pixel {g}");
                 }
                 nonfinite_seen += want_nf;
                 pixels_seen += n;

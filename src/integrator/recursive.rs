@@ -36,7 +36,7 @@
 
 use super::camera_rays::{CameraSampler, PixelSamples, SamplePlan};
 use super::interaction::SurfaceInteraction;
-use super::pixel_filter::resolve_pixel;
+use super::pixel_filter::{TileOut, resolve_pixel};
 use super::shader::{Emitted, Shader};
 use super::shadow::ShadowFilter;
 use super::tiles::{Tile, TileResult, render_tiles};
@@ -53,8 +53,8 @@ use rayon::prelude::*;
 /// [`RenderOptions::validate`]; parallelism is whatever rayon pool the caller runs in.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
     let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
-    let mut out = render_tiles(scene, opts, Workspace::default, |ws, camera, tile| {
-        render_tile(scene, accel, opts, filter.as_ref(), camera, ws, tile)
+    let mut out = render_tiles(scene, opts, Workspace::default, |ws, camera, tile, out| {
+        render_tile(scene, accel, opts, filter.as_ref(), camera, ws, (tile, out))
     });
     out.stages_ms = None;
     out
@@ -93,22 +93,25 @@ fn render_tile(
     filter: Option<&ShadowFilter>,
     camera: &CameraSampler,
     ws: &mut Workspace,
-    tile: Tile,
+    (tile, out): (Tile, &mut TileOut),
 ) -> TileResult {
     let mut tracer = Tracer::new(scene, accel, opts, filter, camera.plan, ws);
-    let mut pixels = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
     let mut nonfinite_samples = 0;
+    let mut i = 0;
     for y in tile.y0..tile.y1 {
         for x in tile.x0..tile.x1 {
             let index = y as u64 * opts.width as u64 + x as u64;
             let sums = tracer.pixel(camera, opts.seed, index, (x, y), ws, &mut nonfinite_samples);
-            pixels.push(sums);
+            out.values[i] = sums.value();
+            if let Some(kept) = &mut out.sums {
+                kept[i] = sums;
+            }
+            i += 1;
         }
     }
     ws.emitted = tracer.emitted;
     TileResult {
         tile,
-        pixels,
         rays: tracer.rays,
         samples_drawn: tracer.drawn,
         nonfinite_samples,

@@ -42,14 +42,13 @@ use super::RenderOptions;
 use super::RenderOutput;
 use super::camera_packets::CameraStaging;
 use super::camera_rays::{CameraSampler, SamplePlan};
-use super::pixel_filter::resolve_pixels;
+use super::pixel_filter::{TileOut, resolve_pixels};
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::shadow::{ShadowFilter, ShadowScratch};
 use super::tiles::{Tile, TileResult, render_tiles};
 use crate::accel::{BatchScratch, Occluder, SceneAccel, SceneHit};
-use crate::film::PixelSums;
 use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
@@ -67,9 +66,9 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
         scene,
         opts,
         || Workspace::new(&pipeline, scene),
-        |ws, camera, tile| {
+        |ws, camera, tile, out| {
             let stage = (&pipeline, lanes.as_ref(), filter.as_ref());
-            render_tile(scene, accel, opts, stage, camera, ws, tile)
+            render_tile(scene, accel, opts, stage, camera, ws, (tile, out))
         },
     )
 }
@@ -251,7 +250,7 @@ fn render_tile(
     (pipeline, lanes, filter): (&Pipeline, Option<&LaneShading>, Option<&ShadowFilter>),
     camera: &CameraSampler,
     ws: &mut Workspace,
-    tile: Tile,
+    (tile, out): (Tile, &mut TileOut),
 ) -> TileResult {
     let plan = camera.plan;
     let cx = WaveContext {
@@ -282,8 +281,6 @@ fn render_tile(
     let batch = Pipeline::camera_batch(scene, &plan);
     let rays_per_pixel = (plan.eye_rendered() * camera.rays_per_eye()) as usize;
     let eye = plan.eye_rendered() as usize;
-    let mut pixels =
-        vec![PixelSums::default(); ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize];
     let mut nonfinite_samples = 0;
     let mut peak = 0;
     // Traces a batch to the end, then filters every pixel whose rays are all done.
@@ -299,7 +296,7 @@ fn render_tile(
             &ws.radiance[..done * rays_per_pixel],
             &ws.unresolved[..done],
             &mut nonfinite_samples,
-            &mut pixels,
+            out,
         );
         ws.unresolved.drain(..done);
         ws.offsets.drain(..done * eye);
@@ -391,7 +388,6 @@ fn render_tile(
     debug_assert!(ws.unresolved.is_empty() && ws.radiance.is_empty());
     TileResult {
         tile,
-        pixels,
         rays: ws.sinks.rays,
         samples_drawn: ws.sinks.drawn,
         nonfinite_samples,

@@ -373,3 +373,48 @@ fn cli_tiles_and_rounds_merge_to_the_single_render() {
     bad_render(&["--sample-range", "3..3"], "expected a..b");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The film's shortcuts give the bits of the exact sums. Without `keep_sums` a tile
+/// resolves each pixel straight into its value: at 1 ray per pixel without building
+/// any sums (`PixelSums::one_sample_value`), with more on the stack; with `keep_sums`
+/// every pixel goes through kept sums, the general path (and the partial image they
+/// encode, merged alone, gives the same frame again). Real renders of shipped scenes,
+/// both integrators, both filters, 1 and 4 eye samples, lens samples, pixel for pixel,
+/// at a size (37x29) whose tiles are cut at the right and bottom edges.
+#[test]
+fn the_film_shortcuts_give_the_frame_of_the_kept_sums_pixel_for_pixel() {
+    let mut cases = 0;
+    for name in ["whitted.toml", "dof_area.toml", "cornell.toml"] {
+        let scene = load_scene(&scene(name)).unwrap();
+        let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+        for (spp, lens, filter) in [
+            (1, 1, FilterKind::Box),
+            (1, 1, FilterKind::Gaussian),
+            (4, 1, FilterKind::Box),
+            (1, 3, FilterKind::Gaussian),
+        ] {
+            let mut opts = RenderOptions::from_scene(&scene);
+            (opts.width, opts.height, opts.spp) = (37, 29, spp);
+            opts.samples.lens = lens;
+            opts.filter = filter;
+            opts.validate().unwrap();
+            for integrator in [IntegratorKind::Wavefront, IntegratorKind::Whitted] {
+                let what = format!("{name} spp {spp} lens {lens} {filter} {integrator:?}");
+                let fast = integrator.render(&scene, &accel, &opts);
+                assert!(fast.sums.is_none(), "{what}");
+                let kept = part(&scene, &accel, integrator, &opts, None, None);
+                let mut o = opts.clone();
+                o.keep_sums = true;
+                let general = integrator.render(&scene, &accel, &o);
+                assert_bit_equal(&fast.film, &general.film, &what);
+                let merged = merge(&names(1), &[kept]).unwrap();
+                assert_bit_equal(&fast.film, &merged.film, &what);
+                assert_eq!(fast.nonfinite_samples, general.nonfinite_samples, "{what}");
+                // Not a black frame: the comparison compares something.
+                assert!(fast.film.mean().max_element() > 0.01, "{what}");
+                cases += 1;
+            }
+        }
+    }
+    assert_eq!(cases, 3 * 4 * 2);
+}
