@@ -144,7 +144,6 @@ impl TinyScene {
         for i in rest..rays.len() {
             deal(i, &mut f);
         }
-        drop(deal);
         for k in 0..KEYS {
             let ids = &bins[k][..fill[k]];
             if !ids.is_empty() {

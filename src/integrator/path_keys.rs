@@ -183,7 +183,14 @@ mod tests {
                             let mut pairs = Vec::new();
                             hit_points(sampler, set, n, &mut a, &mut pairs);
                             let (mut u, mut v, mut scratch) = (Vec::new(), Vec::new(), Vec::new());
-                            hit_points_split(sampler, set, n, &mut b, (&mut u, &mut v), &mut scratch);
+                            hit_points_split(
+                                sampler,
+                                set,
+                                n,
+                                &mut b,
+                                (&mut u, &mut v),
+                                &mut scratch,
+                            );
                             let len = (n as usize).next_multiple_of(16);
                             assert_eq!((u.len(), v.len()), (len, len));
                             for (i, &(x, y)) in pairs.iter().enumerate() {
@@ -193,7 +200,12 @@ mod tests {
                                     "{sampler} depth {depth} n {n} point {i}"
                                 );
                             }
-                            assert!(u[n as usize..].iter().chain(&v[n as usize..]).all(|&z| z == 0.0));
+                            assert!(
+                                u[n as usize..]
+                                    .iter()
+                                    .chain(&v[n as usize..])
+                                    .all(|&z| z == 0.0)
+                            );
                             assert_eq!(
                                 a.map(|mut r| r.next_u64()),
                                 b.map(|mut r| r.next_u64()),

@@ -244,7 +244,7 @@ pub fn fill_2d(
 /// and `v` the second, each padded with zeros to a multiple of 16 (the lanes of the
 /// area-light stage): the same points bit for bit, in the same order, drawing the same
 /// numbers from `rng`. A square jittered set (the default sampler's light points) is
-/// generated straight into the arrays, its random numbers 32 at a time
+/// written straight into the arrays, its random numbers drawn 32 at a time
 /// ([`PixelRng::fill_f32`]); the other patterns go through `fill_2d` and `pairs`.
 pub fn fill_2d_split(
     kind: SamplerKind,
@@ -258,15 +258,19 @@ pub fn fill_2d_split(
     v.clear();
     let k = n.isqrt();
     if kind == SamplerKind::Jittered && k * k == n {
-        // Written in place (no `push` per point: its capacity checks cost more than
-        // the vectorised draws, perf on whitted_area64).
+        // Written in place (no `push` per point: its capacity checks showed in perf
+        // on whitted_area64).
         let len = (n as usize).next_multiple_of(16);
         u.resize(len, 0.0);
         v.resize(len, 0.0);
         let inv = 1.0 / k as f32;
         let (mut i, mut j) = (0u32, 0u32);
         let mut draws = [0.0f32; 32];
-        for (b, (ub, vb)) in u.chunks_exact_mut(16).zip(v.chunks_exact_mut(16)).enumerate() {
+        for (b, (ub, vb)) in u
+            .chunks_exact_mut(16)
+            .zip(v.chunks_exact_mut(16))
+            .enumerate()
+        {
             let m = (n as usize - 16 * b).min(16);
             rng.fill_f32(&mut draws[..2 * m]);
             for p in 0..m {
@@ -400,18 +404,17 @@ impl PixelRng {
         (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 
-    /// `out.len()` successive [`next_f32`](Self::next_f32) draws into `out`: draw `m`
-    /// is the output function at the state advanced `m + 1` times, computed for each
-    /// element on its own (no chain from one to the next), so the loop can run in
-    /// vector lanes.
+    /// `out.len()` successive [`next_f32`](Self::next_f32) draws into `out`.
+    ///
+    /// Dead end (measured): computing each draw on its own from the state advanced
+    /// `m + 1` times (`state + (m + 1) γ`), so that LLVM ran the loop in AVX2 lanes
+    /// (64-bit multiplies emulated by three `vpmuludq` each, plus one more for the
+    /// state), made the whitted_area64 shade stage slower, not faster: 5 interleaved
+    /// runs at 1 thread, load ~9 on 2 cores, 8.3-9.8 s against 10.0-11.0 s with it.
     pub fn fill_f32(&mut self, out: &mut [f32]) {
-        let s = self.state;
-        for (m, o) in out.iter_mut().enumerate() {
-            let z = mix64(s.wrapping_add(GOLDEN_GAMMA.wrapping_mul(m as u64 + 1)));
-            // Below 2^24, so through i32 (a lane conversion) it is the same f32.
-            *o = ((z >> 40) as i32) as f32 * (1.0 / (1u32 << 24) as f32);
+        for o in out {
+            *o = self.next_f32();
         }
-        self.state = s.wrapping_add(GOLDEN_GAMMA.wrapping_mul(out.len() as u64));
     }
 
     /// Uniform in `[0, n)` by multiply-shift (Lemire 2019); the bias of at most

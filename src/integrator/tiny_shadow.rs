@@ -61,35 +61,38 @@ impl TinyShadow<'_> {
         out.resize(rays.len(), Vec3::ONE);
         let mut settled = 0u64;
         let spheres = self.spheres;
-        self.tiny.occluder_groups(rays, scratch, |ids, g, tri, sph| {
-            for_each_bit(tri, |i| out[ids[i] as usize] = Vec3::ZERO);
-            if sph == 0 {
-                return;
-            }
-            match spheres {
-                SphereShadow::Opaque => for_each_bit(sph, |i| out[ids[i] as usize] = Vec3::ZERO),
-                SphereShadow::Glass {
-                    opaque,
-                    glass,
-                    transmission,
-                } => {
-                    settled += sph.count_ones() as u64;
-                    let (blocked, n) = settle_gathered(&g.lanes, g.tmax, sph, opaque, glass);
-                    for_each_bit(sph, |i| {
-                        out[ids[i] as usize] = if blocked >> i & 1 == 1 {
-                            Vec3::ZERO
-                        } else {
-                            // `ShadowFilter::glass_factor` with no later sets.
-                            let mut t = Vec3::ONE;
-                            for _ in 0..n[i] {
-                                t *= transmission;
-                            }
-                            t
-                        };
-                    });
+        self.tiny
+            .occluder_groups(rays, scratch, |ids, g, tri, sph| {
+                for_each_bit(tri, |i| out[ids[i] as usize] = Vec3::ZERO);
+                if sph == 0 {
+                    return;
                 }
-            }
-        });
+                match spheres {
+                    SphereShadow::Opaque => {
+                        for_each_bit(sph, |i| out[ids[i] as usize] = Vec3::ZERO)
+                    }
+                    SphereShadow::Glass {
+                        opaque,
+                        glass,
+                        transmission,
+                    } => {
+                        settled += sph.count_ones() as u64;
+                        let (blocked, n) = settle_gathered(&g.lanes, g.tmax, sph, opaque, glass);
+                        for_each_bit(sph, |i| {
+                            out[ids[i] as usize] = if blocked >> i & 1 == 1 {
+                                Vec3::ZERO
+                            } else {
+                                // `ShadowFilter::glass_factor` with no later sets.
+                                let mut t = Vec3::ONE;
+                                for _ in 0..n[i] {
+                                    t *= transmission;
+                                }
+                                t
+                            };
+                        });
+                    }
+                }
+            });
         counts.transmitted_shadow += settled;
     }
 }

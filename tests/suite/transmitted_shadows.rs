@@ -457,8 +457,8 @@ fn settling_a_blocked_ray_from_its_blocking_set_equals_the_whole_scene_query() {
 /// occlusion and glass crossings in the same lanes) gives the two-step batch's answers
 /// (`occluders_batch`, then `ShadowFilter::transmittance_batch`): every factor bit for
 /// bit and the same counts. Real shadow segments from camera-ray hits towards the
-/// lights and towards 16 points on a quad over the room (runs of one key, partial lane
-/// groups at the ends), on every structure: the Whitted room (opaque floor, a mirror and
+/// lights and 16 rays through each sphere (runs of one key, partial lane groups at
+/// the ends), on every structure: the Whitted room (opaque floor, a mirror and
 /// a glass sphere: the glass variant), the same room with its glass made opaque but a
 /// glass material defined (a filter whose spheres are all opaque), and at a batch
 /// length that leaves partial groups. The scene with moving glass does not take it.
@@ -517,13 +517,17 @@ fn one_pass_tiny_shadows_equal_the_two_step_batch() {
                     continue;
                 };
                 let p = ray.at(hit.t * (1.0 - 1e-4));
-                for s in 0..16 {
-                    let (u, v) = ((s % 4) as f32 / 4.0 + 0.1, (s / 4) as f32 / 4.0 + 0.2);
-                    let q = Vec3::new(-6.0 + 12.0 * u, 9.0, -6.0 + 12.0 * v);
-                    let d = q - p;
-                    let len = d.length();
-                    let seg = packet_render::geometry::Ray::segment(p, d / len, 1e-4, len);
-                    rays.push(seg);
+                // Runs of 16 rays from the hit through each sphere (near its centre).
+                for k in 0..scene.spheres.len() {
+                    let c = scene.spheres.center(k);
+                    for s in 0..16 {
+                        let off = Vec3::new((s % 4) as f32 - 1.5, 0.0, (s / 4) as f32 - 1.5);
+                        let q = c + 0.1 * off + 3.0 * (c - p).normalize();
+                        let d = q - p;
+                        let len = d.length();
+                        let seg = packet_render::geometry::Ray::segment(p, d / len, 1e-4, len);
+                        rays.push(seg);
+                    }
                 }
             }
             let (mut through, mut dark) = (0, 0);
@@ -554,12 +558,22 @@ fn one_pass_tiny_shadows_equal_the_two_step_batch() {
                     );
                 }
                 assert_eq!(counts, want_counts, "{name}/{kind}");
-                through = got.iter().filter(|t| **t != Vec3::ZERO && **t != Vec3::ONE).count();
+                through = got
+                    .iter()
+                    .filter(|t| **t != Vec3::ZERO && **t != Vec3::ONE)
+                    .count();
                 dark = got.iter().filter(|t| **t == Vec3::ZERO).count();
             }
-            eprintln!("{name}/{kind}: {} rays, {dark} dark, {through} through glass", rays.len());
+            eprintln!(
+                "{name}/{kind}: {} rays, {dark} dark, {through} through glass",
+                rays.len()
+            );
             assert!(dark > 100, "{name}/{kind}: {dark} dark rays");
-            assert_eq!(through > 100, name == "whitted", "{name}/{kind}: {through} through glass");
+            assert_eq!(
+                through > 100,
+                name == "whitted",
+                "{name}/{kind}: {through} through glass"
+            );
         }
     }
 }
