@@ -21,8 +21,8 @@
 //! whitted_area64 area-shadow stage 15245-17411 -> 10822-11976 (5 runs, load ~9) and
 //! 7570-8565 -> 5088-5437 (3 runs, load ~6); whitted_blur16 shadow stage 1023-1123 ->
 //! 519-658, whitted_base 71-85 -> 36-46 (3 runs each, load ~3). perf (area64 512x384):
-//! the sort by key plus the second gather (`occluders_batch`, `TinyGroup::new`,
-//! `transmittance_batch`, `settle_lanes`) were ~30 % of the frame before, the binning
+//! the sort by key plus the second gather (`occluders_batch` with `TinyGroup::new`,
+//! `transmittance_batch`, `settle_lanes`) were ~21 % of the frame before, the binning
 //! and the fused pass ~14 % after.
 
 use crate::accel::{TinyScene, TinyScratch};
