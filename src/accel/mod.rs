@@ -722,6 +722,14 @@ pub struct BatchScratch {
     tiny: TinyScratch,
 }
 
+impl BatchScratch {
+    /// The buffers of the tiny-scene lane groups, for a caller that runs them itself
+    /// (`integrator::tiny_shadow`).
+    pub fn tiny(&mut self) -> &mut TinyScratch {
+        &mut self.tiny
+    }
+}
+
 /// `best`, or the hit `query` finds before it.
 fn closer(
     best: Option<SceneHit>,

@@ -17,7 +17,8 @@
 use super::{Occluder, PrimRef, SceneHit};
 use crate::geometry::Ray;
 use crate::scene::Scene;
-use crate::simd::tiny::{TINY_WIDTH, TinyGroup, shear_key};
+use crate::simd::kernels::RayLanes;
+use crate::simd::tiny::{TINY_WIDTH, TinyGroup, shear_key, uniform_shear_key};
 use glam::Vec3;
 
 /// The most static triangles plus spheres a scene may have for its batch queries to go
@@ -49,13 +50,14 @@ pub struct TinyScene {
     spheres: Vec<(Vec3, f32)>,
 }
 
-/// Reusable buffers of the tiny batch queries.
+/// Reusable buffers of the tiny batch queries: one bin of ray indices per shear key.
 #[derive(Default)]
 pub struct TinyScratch {
-    /// Ray indices sorted by shear key.
-    order: Vec<u32>,
-    keys: Vec<u8>,
+    bins: [[u32; TINY_WIDTH]; KEYS],
 }
+
+/// Shear keys ([`shear_key`]): three dominant axes times two signs.
+const KEYS: usize = 6;
 
 impl TinyScene {
     /// `Some` for a scene whose static triangles and spheres number at most
@@ -90,45 +92,64 @@ impl TinyScene {
         self.len() == 0
     }
 
-    /// Calls `f(indices, group)` for each lane group of the valid rays of `rays`, the
-    /// rays sorted by shear key (a counting sort) so that each group shares one.
+    /// Calls `f(indices, group)` for lane groups covering every valid ray of `rays`
+    /// once, each group's rays of one shear key. The rays are dealt in order into one
+    /// bin per key, and a bin is tested when it holds [`TINY_WIDTH`] rays (the rest at
+    /// the end): groups as full as a sort by key makes them (at most one partial group
+    /// per key), in one pass over the batch, with no index array the length of the
+    /// batch. Rays of a run of one key (the shadow rays of one shading point towards
+    /// one light, camera rays of a tile) fill their bin in a row.
+    ///
+    /// Measured against the counting sort of the whole batch by key that this
+    /// replaced (keys and order arrays, three passes), in the same change as the
+    /// fused shadow pass (`integrator::tiny_shadow`): see there.
     fn for_each_group(
         &self,
         rays: &[Ray],
         scratch: &mut TinyScratch,
         mut f: impl FnMut(&[u32], &TinyGroup),
     ) {
-        const KEYS: usize = 6;
-        let mut count = [0usize; KEYS + 1];
-        scratch.keys.clear();
-        scratch.keys.extend(rays.iter().map(|r| {
-            let k = shear_key(r).unwrap_or(KEYS) as u8;
-            count[k as usize] += 1;
-            k
-        }));
-        let mut start = [0usize; KEYS + 1];
-        for k in 1..=KEYS {
-            start[k] = start[k - 1] + count[k - 1];
-        }
-        let valid = start[KEYS];
-        scratch.order.clear();
-        scratch.order.resize(rays.len(), 0);
-        let mut next = start;
-        for (i, &k) in scratch.keys.iter().enumerate() {
-            scratch.order[next[k as usize]] = i as u32;
-            next[k as usize] += 1;
-        }
-        for key in 0..KEYS {
-            let ids = &scratch.order[start[key]..start[key] + count[key]];
-            for chunk in ids.chunks(TINY_WIDTH) {
-                f(chunk, &TinyGroup::new(rays, chunk, key));
+        let bins = &mut scratch.bins;
+        let mut fill = [0usize; KEYS];
+        let mut deal = |i: usize, f: &mut dyn FnMut(&[u32], &TinyGroup)| {
+            let Some(k) = shear_key(&rays[i]) else {
+                return;
+            };
+            bins[k][fill[k]] = i as u32;
+            fill[k] += 1;
+            if fill[k] == TINY_WIDTH {
+                fill[k] = 0;
+                f(&bins[k], &TinyGroup::new(rays, &bins[k], k));
+            }
+        };
+        let mut ids = [0u32; TINY_WIDTH];
+        let mut windows = rays.chunks_exact(TINY_WIDTH);
+        for (w, window) in windows.by_ref().enumerate() {
+            // Sixteen rays in a row of one key, all valid (the common case): a group
+            // as they stand, gathered once, no key per ray and no bin.
+            let (lanes, tmax) = RayLanes::gather(window);
+            let first = (w * TINY_WIDTH) as u32;
+            if let Some(k) = uniform_shear_key(&lanes, tmax) {
+                for (n, id) in ids.iter_mut().enumerate() {
+                    *id = first + n as u32;
+                }
+                f(&ids, &TinyGroup::from_lanes(rays, &ids, k, lanes, tmax));
+            } else {
+                for i in 0..TINY_WIDTH {
+                    deal(first as usize + i, &mut f);
+                }
             }
         }
-        debug_assert!(
-            scratch.order[valid..]
-                .iter()
-                .all(|&i| !rays[i as usize].is_valid())
-        );
+        let rest = rays.len() - windows.remainder().len();
+        for i in rest..rays.len() {
+            deal(i, &mut f);
+        }
+        for k in 0..KEYS {
+            let ids = &bins[k][..fill[k]];
+            if !ids.is_empty() {
+                f(ids, &TinyGroup::new(rays, ids, k));
+            }
+        }
     }
 
     /// Closest hits of `rays` over the triangles and spheres into `out` (`None` for a
@@ -173,9 +194,7 @@ impl TinyScene {
         scratch: &mut TinyScratch,
         mut mark: impl FnMut(usize, Occluder),
     ) {
-        self.for_each_group(rays, scratch, |ids, g| {
-            let tri = g.any_triangle(&self.triangles);
-            let sph = g.any_sphere(&self.spheres, g.mask & !tri);
+        self.occluder_groups(rays, scratch, |ids, _, tri, sph| {
             for (i, &id) in ids.iter().enumerate() {
                 if tri >> i & 1 == 1 {
                     mark(id as usize, Occluder::Triangles);
@@ -183,6 +202,23 @@ impl TinyScene {
                     mark(id as usize, Occluder::Spheres);
                 }
             }
+        });
+    }
+
+    /// The lane groups of [`occluders_batch`](Self::occluders_batch) with their
+    /// answers: `f(indices, group, tri, sph)`, `tri` the bits of the lanes a triangle
+    /// blocks, `sph` of those it leaves that a sphere blocks. For a caller that goes
+    /// on in the same lanes (`integrator::tiny_shadow`).
+    pub fn occluder_groups(
+        &self,
+        rays: &[Ray],
+        scratch: &mut TinyScratch,
+        mut f: impl FnMut(&[u32], &TinyGroup, u32, u32),
+    ) {
+        self.for_each_group(rays, scratch, |ids, g| {
+            let tri = g.any_triangle(&self.triangles);
+            let sph = g.any_sphere(&self.spheres, g.mask & !tri);
+            f(ids, g, tri, sph);
         });
     }
 }

@@ -30,6 +30,7 @@ pub mod shadow;
 pub mod sobol;
 pub mod texturing;
 pub mod tiles;
+pub mod tiny_shadow;
 pub mod wavefront;
 
 use crate::error::{Error, Result};

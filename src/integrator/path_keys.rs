@@ -5,7 +5,7 @@
 //! integrators draw the same samples.
 
 use super::SamplerKind;
-use super::sampling::{Dimension, PixelRng, fill_2d};
+use super::sampling::{Dimension, PixelRng, fill_2d, fill_2d_split, pad_to_lanes};
 use super::sobol::{SobolDim, SobolSet};
 
 /// Which per-hit set a shading point draws: its pixel, path and depth, and what the
@@ -42,6 +42,35 @@ pub(crate) fn hit_points(
     }
     let rng = stream.get_or_insert_with(|| path_rng(set.seed, set.pixel, set.path));
     fill_2d(sampler, n, Dimension::Hit, false, rng, out);
+}
+
+/// [`hit_points`] into two arrays, `u` the first coordinates and `v` the second, each
+/// padded with zeros to a multiple of 16 (the area-light stage's lanes): the same
+/// points bit for bit, drawing the same numbers from `stream` (`pairs` is scratch).
+pub(crate) fn hit_points_split(
+    sampler: SamplerKind,
+    set: HitSet,
+    n: u32,
+    stream: &mut Option<PixelRng>,
+    (u, v): (&mut Vec<f32>, &mut Vec<f32>),
+    pairs: &mut Vec<(f32, f32)>,
+) {
+    if sampler == SamplerKind::Sobol && set.depth == 0 {
+        let seq = SobolSet::new(set.seed, set.pixel, set.dim);
+        let first = (set.path as u32).wrapping_mul(n);
+        u.clear();
+        v.clear();
+        for i in 0..n {
+            let (a, b) = seq.point(first.wrapping_add(i));
+            u.push(a);
+            v.push(b);
+        }
+        pad_to_lanes(u);
+        pad_to_lanes(v);
+        return;
+    }
+    let rng = stream.get_or_insert_with(|| path_rng(set.seed, set.pixel, set.path));
+    fill_2d_split(sampler, n, Dimension::Hit, rng, (u, v), pairs);
 }
 
 /// The random stream of the shading point reached by path `path` of pixel `pixel`.
@@ -122,5 +151,72 @@ mod tests {
         };
         assert!(crate::integrator::sobol::is_0m2_net(&deep(12345)));
         assert_ne!(deep(12345), deep(12346));
+    }
+
+    /// The light points as lanes (`hit_points_split`, the area-light stage's) are
+    /// `hit_points`' points bit for bit, in order, padded with zeros to a multiple of
+    /// 16, and leave the shading point's stream where `hit_points` leaves it: every
+    /// sampler, at the first hit (the Sobol pixel sequence) and deeper (the path's
+    /// stream, created on first use or already drawn from), square and other counts.
+    #[test]
+    fn light_points_as_lanes_equal_the_pairs() {
+        let mut compared = 0;
+        for &sampler in SamplerKind::ALL {
+            for depth in [0, 1] {
+                for n in [1u32, 2, 3, 4, 9, 15, 16, 17, 36, 64, 100, 256] {
+                    for path in [0u64, 5, 77] {
+                        let set = HitSet {
+                            seed: 11,
+                            pixel: 40 + path,
+                            path,
+                            depth,
+                            dim: SobolDim::Light(1),
+                        };
+                        // A fresh stream, and one already drawn from (a second light).
+                        for warm in [false, true] {
+                            let start = warm.then(|| {
+                                let mut r = path_rng(1, 2, path);
+                                r.next_u64();
+                                r
+                            });
+                            let (mut a, mut b) = (start.clone(), start);
+                            let mut pairs = Vec::new();
+                            hit_points(sampler, set, n, &mut a, &mut pairs);
+                            let (mut u, mut v, mut scratch) = (Vec::new(), Vec::new(), Vec::new());
+                            hit_points_split(
+                                sampler,
+                                set,
+                                n,
+                                &mut b,
+                                (&mut u, &mut v),
+                                &mut scratch,
+                            );
+                            let len = (n as usize).next_multiple_of(16);
+                            assert_eq!((u.len(), v.len()), (len, len));
+                            for (i, &(x, y)) in pairs.iter().enumerate() {
+                                assert_eq!(
+                                    (u[i].to_bits(), v[i].to_bits()),
+                                    (x.to_bits(), y.to_bits()),
+                                    "{sampler} depth {depth} n {n} point {i}"
+                                );
+                            }
+                            assert!(
+                                u[n as usize..]
+                                    .iter()
+                                    .chain(&v[n as usize..])
+                                    .all(|&z| z == 0.0)
+                            );
+                            assert_eq!(
+                                a.map(|mut r| r.next_u64()),
+                                b.map(|mut r| r.next_u64()),
+                                "{sampler} depth {depth} n {n}: the stream after"
+                            );
+                            compared += pairs.len();
+                        }
+                    }
+                }
+            }
+        }
+        assert!(compared > 10_000, "{compared} points");
     }
 }

@@ -61,7 +61,11 @@ pub(crate) struct Sinks {
 pub(crate) struct ShadeScratch {
     pub batch: HitBatch,
     albedo: Vec<Vec3>,
+    /// Scratch of the light points of a pattern drawn as pairs.
     points: Vec<(f32, f32)>,
+    /// The light points of one hit as lanes: first and second coordinates.
+    u: Vec<f32>,
+    v: Vec<f32>,
 }
 
 /// What the lane path of a scene needs: which materials it covers and the lights in
@@ -443,7 +447,8 @@ fn shade_group_lanes(
             let paths = LanePaths::splat(slot, weight, time);
             let lane_weight = V3::splat(weight);
             for (index, quad) in &lanes.quads {
-                super::path_keys::hit_points(
+                // The light points straight into lanes (`u`, `v` padded to 16).
+                super::path_keys::hit_points_split(
                     plan.sampler,
                     HitSet {
                         seed: shader.seed,
@@ -454,26 +459,24 @@ fn shade_group_lanes(
                     },
                     samples,
                     &mut stream,
+                    (&mut scratch.u, &mut scratch.v),
                     &mut scratch.points,
                 );
                 sinks.drawn.light += samples as u64;
-                for chunk in scratch.points.chunks(16) {
-                    let mut u = [0.0f32; 16];
-                    let mut v = [0.0f32; 16];
-                    for (i, &(a, b)) in chunk.iter().enumerate() {
-                        (u[i], v[i]) = (a, b);
-                    }
-                    let active = if chunk.len() == 16 {
+                let lane = |a: &[f32], c: usize| Packet::new(a[c..c + 16].try_into().expect("16"));
+                for c in (0..samples as usize).step_by(16) {
+                    let left = samples as usize - c;
+                    let active = if left >= 16 {
                         0xffff
                     } else {
-                        (1u32 << chunk.len()) - 1
+                        (1u32 << left) - 1
                     };
                     let sl = quad_light(
                         &s,
                         &hl,
                         quad,
-                        Packet::new(u),
-                        Packet::new(v),
+                        lane(&scratch.u, c),
+                        lane(&scratch.v, c),
                         samples as f32,
                         active,
                     );

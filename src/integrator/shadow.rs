@@ -237,6 +237,35 @@ impl ShadowFilter {
         })
     }
 
+    /// The one-pass settlement of the shadow rays of a tiny scene
+    /// ([`TinyShadow`](super::tiny_shadow::TinyShadow)), where `accel`'s batch queries
+    /// go through its `TinyScene` alone, the triangles are all opaque, and the spheres
+    /// all opaque or split with glass of one transmission in lanes; else `None`.
+    pub fn tiny_pass<'a>(
+        &'a self,
+        accel: &'a SceneAccel,
+    ) -> Option<super::tiny_shadow::TinyShadow<'a>> {
+        use super::tiny_shadow::{SphereShadow, TinyShadow};
+        let tiny = accel.tiny.as_ref()?;
+        if accel.has_sets_from(Occluder::Moving)
+            || !self.is_opaque(Occluder::Triangles)
+            || self.is_split(Occluder::Triangles)
+        {
+            return None;
+        }
+        let spheres = if self.is_opaque(Occluder::Spheres) {
+            SphereShadow::Opaque
+        } else {
+            let glass = self.glass.as_ref()?;
+            SphereShadow::Glass {
+                opaque: glass.opaque.as_deref()?,
+                glass: &glass.spheres,
+                transmission: glass.transmission,
+            }
+        };
+        Some(TinyShadow { tiny, spheres })
+    }
+
     /// Whether every primitive of `set` blocks light.
     pub fn is_opaque(&self, set: Occluder) -> bool {
         self.opaque[set as usize]

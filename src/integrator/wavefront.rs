@@ -516,7 +516,16 @@ fn trace_shadows(
             continue;
         }
         let t = Instant::now();
-        if let Some((scene, filter)) = transmit {
+        if let Some(pass) = transmit.and_then(|(_, filter)| filter.tiny_pass(accel)) {
+            // Tiny scene: occlusion and glass in one pass of lanes (`tiny_shadow`).
+            let transmitted = &mut ws.transmitted;
+            pass.transmittance_batch(&q.rays, transmitted, ws.scratch.tiny(), &mut sinks.rays);
+            for ((&t, &slot), &c) in transmitted.iter().zip(&q.slot).zip(&q.contribution) {
+                if t != Vec3::ZERO {
+                    acc[slot as usize] += c * t;
+                }
+            }
+        } else if let Some((scene, filter)) = transmit {
             let occluders = &mut ws.occluders;
             occluders.clear();
             occluders.resize(q.rays.len(), None);

@@ -10,7 +10,7 @@
 //! `tmin` moved to the first root, which computes the same two roots).
 
 use super::kernels::{RayLanes, sphere_lanes, sphere_roots};
-use super::{Lanes, PACKET_WIDTH};
+use super::{Lanes, PACKET_WIDTH, Packet};
 use crate::geometry::Ray;
 use glam::Vec3;
 
@@ -51,21 +51,35 @@ pub fn settle_lanes(
     debug_assert!(rays.len() <= PACKET_WIDTH);
     let (lanes, tmax) = RayLanes::gather(rays.iter().inspect(|r| debug_assert!(r.is_valid())));
     let all = ((1u64 << rays.len()) - 1) as u32;
+    settle_gathered(&lanes, tmax, all, opaque, glass)
+}
+
+/// [`settle_lanes`] of rays already in lanes (`lanes`, interval ends `tmax`), for the
+/// lanes in `live` (all valid rays): the bits of those an `opaque` sphere blocks, and
+/// for the others the crossings of the `glass` spheres (zero elsewhere).
+#[inline(always)]
+pub fn settle_gathered(
+    lanes: &RayLanes<Packet>,
+    tmax: Packet,
+    live: u32,
+    opaque: &[(Vec3, f32)],
+    glass: &[(Vec3, f32)],
+) -> (u32, [u32; PACKET_WIDTH]) {
     let mut blocked = 0;
     for &(center, radius) in opaque {
-        let live = all & !blocked;
-        if live == 0 {
+        let rest = live & !blocked;
+        if rest == 0 {
             break;
         }
-        blocked |= sphere_lanes(&lanes, center, radius, tmax, live).1;
+        blocked |= sphere_lanes(lanes, center, radius, tmax, rest).1;
     }
-    let active = all & !blocked;
+    let active = live & !blocked;
     let mut counts = [0u32; PACKET_WIDTH];
     for &(center, radius) in glass {
         if active == 0 {
             break;
         }
-        let (once, twice) = sphere_crossings(&lanes, center, radius, tmax, active);
+        let (once, twice) = sphere_crossings(lanes, center, radius, tmax, active);
         for (i, c) in counts.iter_mut().enumerate() {
             *c += (once >> i & 1) + (twice >> i & 1);
         }

@@ -33,6 +33,45 @@ pub fn shear_key(r: &Ray) -> Option<usize> {
     Some(kz * 2 + (r.dir[kz] < 0.0) as usize)
 }
 
+/// The [`shear_key`] shared by all [`TINY_WIDTH`] rays in `lanes` (interval ends
+/// `tmax`), or `None` when a ray is invalid (`Ray::is_valid` in lanes: finite origin
+/// and direction, a non-zero direction, an interval with no NaN and `tmin <= tmax`)
+/// or two keys differ. `dominant_axis` in lanes: x where |x| is at least |y| and |z|,
+/// else y where |y| >= |z|, else z.
+#[inline(always)]
+pub fn uniform_shear_key(lanes: &RayLanes<TinyLanes>, tmax: TinyLanes) -> Option<usize> {
+    let [ox, oy, oz] = lanes.o;
+    let [dx, dy, dz] = lanes.d;
+    let finite = ox.is_finite() & oy.is_finite() & oz.is_finite();
+    let finite = finite & dx.is_finite() & dy.is_finite() & dz.is_finite();
+    let zero = TinyLanes::splat(0.0);
+    let null = dx.simd_eq(zero) & dy.simd_eq(zero) & dz.simd_eq(zero);
+    let interval = lanes.tmin.simd_le(tmax);
+    let all = (1u32 << TINY_WIDTH) - 1;
+    if (finite & interval).to_bitmask() != all || null.to_bitmask() != 0 {
+        return None;
+    }
+    let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
+    let x = (ax.simd_ge(ay) & ax.simd_ge(az)).to_bitmask();
+    let y = !x & ay.simd_ge(az).to_bitmask() & all;
+    let (kz, d) = if x == all {
+        (0, dx)
+    } else if y == all {
+        (1, dy)
+    } else if x | y == 0 {
+        (2, dz)
+    } else {
+        return None;
+    };
+    match d.to_bitmask() {
+        // `d[kz] < 0`: the sign bit of a non-zero lane (the dominant component of a
+        // non-zero direction is not zero, so -0.0 cannot occur).
+        0 => Some(kz * 2),
+        m if m == all => Some(kz * 2 + 1),
+        _ => None,
+    }
+}
+
 /// Up to [`TINY_WIDTH`] valid rays of the same [`shear_key`], as lanes.
 pub struct TinyGroup<'a> {
     pub lanes: RayLanes<TinyLanes>,
@@ -57,6 +96,19 @@ impl<'a> TinyGroup<'a> {
             debug_assert_eq!(shear_key(r), Some(key));
             r
         }));
+        Self::from_lanes(rays, ids, key, lanes, tmax)
+    }
+
+    /// The group of the rays `rays[ids[i]]` already gathered into `lanes` (interval
+    /// ends `tmax`), all valid and of key `key`.
+    #[inline(always)]
+    pub fn from_lanes(
+        rays: &'a [Ray],
+        ids: &'a [u32],
+        key: usize,
+        lanes: RayLanes<TinyLanes>,
+        tmax: TinyLanes,
+    ) -> TinyGroup<'a> {
         let RayLanes { o, d, tmin } = lanes;
         // The permutation of `RayQuery::new`: kx, ky follow kz, swapped when d[kz] < 0.
         let kz = key / 2;

@@ -452,3 +452,131 @@ fn settling_a_blocked_ray_from_its_blocking_set_equals_the_whole_scene_query() {
         }
     }
 }
+
+/// The one-pass settlement of a tiny scene's shadow rays (`ShadowFilter::tiny_pass`,
+/// occlusion and glass crossings in the same lanes) gives the two-step batch's answers
+/// (`occluders_batch`, then `ShadowFilter::transmittance_batch`): every factor bit for
+/// bit and the same counts. Real shadow segments from camera-ray hits towards the
+/// lights and 16 rays through each sphere (runs of one key, partial lane groups at
+/// the ends), on every structure: the Whitted room (opaque floor, a mirror and
+/// a glass sphere: the glass variant), the same room with its glass made opaque but a
+/// glass material defined (a filter whose spheres are all opaque), and at a batch
+/// length that leaves partial groups. The scene with moving glass does not take it.
+#[test]
+fn one_pass_tiny_shadows_equal_the_two_step_batch() {
+    use packet_render::accel::BatchScratch;
+    use packet_render::integrator::shadow::{ShadowFilter, ShadowScratch};
+    use packet_render::stats::RayCounts;
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/whitted.toml");
+    let whitted = packet_render::scene::load::load_scene(&path).unwrap();
+    let mut opaque = whitted.clone();
+    for m in &mut opaque.materials {
+        if m.is_transmissive() {
+            *m = Material::diffuse("was glass", Vec3::splat(0.5));
+        }
+    }
+    opaque.materials.push(glass(Vec3::splat(0.9), 1.5));
+    let mut moving = SceneBuilder::new();
+    let floor = moving.add_material(Material::diffuse("floor", Vec3::splat(0.8)));
+    let clear = moving.add_material(glass(Vec3::splat(0.9), 1.2));
+    moving.add_quad(
+        Vec3::new(-8.0, 0.0, -8.0),
+        Vec3::new(0.0, 0.0, 16.0),
+        Vec3::new(16.0, 0.0, 0.0),
+        floor,
+    );
+    moving.add_moving_sphere(Vec3::new(0.0, 1.0, 0.0), 0.6, Vec3::X, clear);
+    moving.add_light(Light::Point {
+        position: Vec3::new(0.2, 5.0, 0.1),
+        intensity: Vec3::splat(20.0),
+    });
+    moving.camera = Some(Camera {
+        eye: Vec3::new(0.0, 4.0, 6.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        vfov_deg: 50.0,
+    });
+    let moving = moving.finish().unwrap();
+    for &kind in AccelKind::ALL {
+        let accel = SceneAccel::build(&moving, kind);
+        let filter = ShadowFilter::new(&moving, true, kind).expect("glass");
+        assert!(filter.tiny_pass(&accel).is_none(), "moving/{kind}");
+    }
+    for (name, scene) in [("whitted", &whitted), ("opaque", &opaque)] {
+        let filter = ShadowFilter::new(scene, true, AccelKind::Bvh4).expect("a glass material");
+        for &kind in AccelKind::ALL {
+            let accel = SceneAccel::build(scene, kind);
+            let pass = filter
+                .tiny_pass(&accel)
+                .unwrap_or_else(|| panic!("{name}/{kind}: the one-pass settlement applies"));
+            let mut rays = shadow_segments(scene, &accel, 48, 36);
+            let frame = scene.camera.frame(24, 18);
+            for i in 0..24 * 18 {
+                let ray = frame.ray((i % 24) as f32 + 0.5, (i / 24) as f32 + 0.5);
+                let Some(hit) = accel.closest_hit(&ray) else {
+                    continue;
+                };
+                let p = ray.at(hit.t * (1.0 - 1e-4));
+                // Runs of 16 rays from the hit through each sphere (near its centre).
+                for k in 0..scene.spheres.len() {
+                    let c = scene.spheres.center(k);
+                    for s in 0..16 {
+                        let off = Vec3::new((s % 4) as f32 - 1.5, 0.0, (s / 4) as f32 - 1.5);
+                        let q = c + 0.1 * off + 3.0 * (c - p).normalize();
+                        let d = q - p;
+                        let len = d.length();
+                        let seg = packet_render::geometry::Ray::segment(p, d / len, 1e-4, len);
+                        rays.push(seg);
+                    }
+                }
+            }
+            let (mut through, mut dark) = (0, 0);
+            for len in [rays.len() - 7, rays.len()] {
+                let rays = &rays[..len];
+                let mut first = vec![None; len];
+                let mut scratch = BatchScratch::default();
+                accel.occluders_batch(rays, &mut first, &mut Vec::new(), &mut scratch);
+                let (mut want, mut want_counts) = (Vec::new(), RayCounts::default());
+                filter.transmittance_batch(
+                    scene,
+                    &accel,
+                    rays,
+                    &first,
+                    &mut want,
+                    &mut ShadowScratch::default(),
+                    &mut want_counts,
+                );
+                let (mut got, mut counts) = (Vec::new(), RayCounts::default());
+                pass.transmittance_batch(rays, &mut got, scratch.tiny(), &mut counts);
+                assert_eq!(got.len(), len, "{name}/{kind}");
+                for i in 0..len {
+                    assert_eq!(
+                        got[i].to_array().map(f32::to_bits),
+                        want[i].to_array().map(f32::to_bits),
+                        "{name}/{kind} ray {i}: {:?}",
+                        rays[i]
+                    );
+                }
+                assert_eq!(counts, want_counts, "{name}/{kind}");
+                // Blocked first by the spheres and yet lit: through the glass.
+                through = (0..len)
+                    .filter(|&i| {
+                        first[i] == Some(packet_render::accel::Occluder::Spheres)
+                            && got[i] != Vec3::ZERO
+                    })
+                    .count();
+                dark = got.iter().filter(|t| **t == Vec3::ZERO).count();
+            }
+            eprintln!(
+                "{name}/{kind}: {} rays, {dark} dark, {through} through glass",
+                rays.len()
+            );
+            assert!(dark > 100, "{name}/{kind}: {dark} dark rays");
+            assert_eq!(
+                through > 100,
+                name == "whitted",
+                "{name}/{kind}: {through} through glass"
+            );
+        }
+    }
+}
