@@ -1,8 +1,8 @@
 //! Camera rays for many pixels at once, built lane-parallel
 //! ([`crate::simd::camera::camera_rays`], 16 rays per step) from the sampler's points.
 //!
-//! [`CameraSampler::pixel_samples`] stays the scalar oracle: for the same pixels,
-//! [`CameraSampler::block_rays`] returns the same eye-sample offsets and the same rays
+//! `CameraSampler::pixel_samples` stays the scalar oracle: for the same pixels,
+//! `CameraSampler::block_rays` returns the same eye-sample offsets and the same rays
 //! bit for bit, in the same order (pixel by pixel, eye sample major, then lens points,
 //! then shutter times), and counts the same samples drawn. The sample sets themselves
 //! are drawn per pixel by the scalar sampler (each pixel has its own random stream);

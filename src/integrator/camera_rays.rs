@@ -1,5 +1,5 @@
 //! Ray generation: the sample counts a render uses ([`SamplePlan`]) and the camera
-//! rays of a pixel ([`CameraSampler::pixel_samples`]): pixel positions (any
+//! rays of a pixel (`CameraSampler::pixel_samples`): pixel positions (any
 //! [`SamplerKind`]), lens points (depth of field) and shutter times (motion blur),
 //! drawn from the pixel's own random stream, so that every integrator generates the
 //! same rays for a pixel whatever the thread count or the order of tiles.

@@ -1,6 +1,6 @@
 //! Random numbers keyed by path identity: the stream of a shading point
 //! ([`path_rng`]), the identity of a child ray ([`child_path`]), and the per-hit sample
-//! sets (light points, lobe directions) drawn from them ([`hit_points`]). Keyed by
+//! sets (light points, lobe directions) drawn from them (`hit_points`). Keyed by
 //! identity, not by visiting order, so the depth-first and the breadth-first
 //! integrators draw the same samples.
 

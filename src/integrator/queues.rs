@@ -1,5 +1,5 @@
-//! The wavefront's queues: closest-hit rays ([`RayQueue`]) and shadow rays
-//! ([`ShadowQueue`]) stored structure of arrays, and [`PerChildKind`], the typed map
+//! The wavefront's queues: closest-hit rays (`RayQueue`) and shadow rays
+//! (`ShadowQueue`) stored structure of arrays, and `PerChildKind`, the typed map
 //! that holds one value (a queue, a flag) per kind of child ray.
 
 use super::shader::ChildKind;

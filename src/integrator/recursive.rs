@@ -27,7 +27,7 @@
 //!
 //! This file holds the recursion only. The stages it shares with the wavefront
 //! integrator live in their own files: camera rays ([`super::camera_rays`]), surface
-//! interactions ([`super::interaction`]), the local shading ([`Shader::shade_emit`] in
+//! interactions ([`super::interaction`]), the local shading (`Shader::shade_emit` in
 //! [`super::shader`]: emission, ambient, the direct-light reflectance with the shadow
 //! rays it needs, and the mirror, glossy and glass child rays with their weights and
 //! the contribution cutoff), the pixel filter ([`super::pixel_filter`]) and the tile

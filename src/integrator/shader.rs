@@ -1,4 +1,4 @@
-//! The local shading model, shared by both integrators ([`Shader::shade_emit`]):
+//! The local shading model, shared by both integrators (`Shader::shade_emit`):
 //! emission, ambient, direct light (Lambert plus Blinn-Phong) with the shadow rays it
 //! needs, and the mirror, glossy, glass and translucent child rays with their weights
 //! and the contribution cutoff. The recursive integrator traces the emitted rays at

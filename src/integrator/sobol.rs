@@ -153,7 +153,7 @@ fn laine_karras(mut x: u32, key: u64) -> u32 {
 /// of `i` is flipped by a hash of the bits above `j` (and the key) when those are not
 /// all zero. The flip of a bit depends only on higher bits, so the map is invertible
 /// from the top down, and an index below `2^k` never gains a bit at or above `k`.
-/// Computed as a nested scramble of the reversed index ([`laine_karras`]) whose flips
+/// Computed as a nested scramble of the reversed index (`laine_karras`) whose flips
 /// at and below the lowest set bit of the reversed index are masked off.
 #[inline]
 pub fn shuffle_index(i: u32, key: u64) -> u32 {

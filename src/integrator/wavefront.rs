@@ -3,16 +3,16 @@
 //! Wavefront Path Tracing on GPUs", HPG 2013; on the CPU, the batches feed the BVH4's
 //! 16-ray packet kernels).
 //!
-//! Work proceeds per tile of [`TILE`](super::tiles::TILE)² pixels with all their samples, so the queues
+//! Work proceeds per tile of `TILE`² pixels with all their samples, so the queues
 //! are bounded by the tile, not the image. Per tile:
 //!
 //! 1. **camera**: the camera rays of every pixel, built 16 at a time by
-//!    [`CameraSampler::block_rays`] (the same rays, bit for bit, as the recursive
-//!    renderer's [`CameraSampler::pixel_samples`]), pixels in 4×4 blocks so that 16
+//!    `CameraSampler::block_rays` (the same rays, bit for bit, as the recursive
+//!    renderer's `CameraSampler::pixel_samples`), pixels in 4×4 blocks so that 16
 //!    consecutive rays form a coherent packet;
 //! 2. **trace**: their closest hits, in batches ([`SceneAccel::closest_hit_batch`]);
-//! 3. **shade**: the hits grouped by material ([`shade_queue`]): in lanes where the
-//!    lane path covers the material and lights, else through [`Shader::shade_emit`],
+//! 3. **shade**: the hits grouped by material (`shade_queue`): in lanes where the
+//!    lane path covers the material and lights, else through `Shader::shade_emit`,
 //!    the local shading shared with the recursive renderer (the same rays either
 //!    way): the local radiance goes into the accumulator of the
 //!    camera sample, shadow rays into the point/directional or the area-light shadow
@@ -23,7 +23,7 @@
 //! 5. the child queues become the next wave (trace, shade, shadow) until they are
 //!    empty (the depth limit and the contribution cutoff stop emission in `shade_emit`);
 //! 6. the camera-sample accumulators are filtered into pixels by
-//!    [`resolve_pixels`](super::pixel_filter::resolve_pixels), the recursive renderer's own filter step (a sample whose total
+//!    `resolve_pixels`, the recursive renderer's own filter step (a sample whose total
 //!    is NaN or infinite is dropped and counted).
 //!
 //! Radiance is linear in the tree, so summing `weight · local` over the tree's nodes in

@@ -6,7 +6,7 @@
 //!
 //! Every formula repeats the scalar one's f32 operations in the same order, so each
 //! lane computes bit for bit what the scalar shader computes, except the Blinn-Phong
-//! power: [`pow`](super::pow::pow) is within [`POW_REL_ERROR`](super::pow::POW_REL_ERROR)
+//! power: [`super::pow::pow`] is within [`super::pow::POW_REL_ERROR`]
 //! of libm's `powf`. Shadow-ray geometry (origin, direction, extent) does not depend on
 //! the power and is bit-identical, so both paths trace the same shadow rays.
 

@@ -3,7 +3,7 @@
 //! query (`accel::filter`, `sphere_candidates`) would offer that sphere to the
 //! transmittance filter (`integrator::shadow`).
 //!
-//! The roots are [`sphere_lanes`](super::kernels::sphere_lanes)'s arithmetic (the lane
+//! The roots are [`super::kernels::sphere_lanes`]'s arithmetic (the lane
 //! twin of `geometry::intersect_sphere`, bit for bit), and the count follows
 //! `sphere_candidates` exactly: the nearest root in `(tmin, tmax)`, then the far root if
 //! it lies beyond the near one and before `tmax` (the scalar code re-runs the test with
