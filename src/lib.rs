@@ -25,6 +25,8 @@ pub mod progressive;
 pub mod scene;
 pub mod simd;
 pub mod stats;
+#[cfg(test)]
+mod test_rng;
 pub mod texture;
 
 pub use error::{Error, Result};

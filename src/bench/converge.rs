@@ -378,15 +378,7 @@ fn slopes(rows: &[ConvergeRow]) -> Vec<Slope> {
 /// 8 bits, so the error is in display units (1 = black against white). Films of
 /// different sizes are an error.
 pub fn display_rmse(a: &Film, b: &Film) -> Result<f64> {
-    if (a.width, a.height) != (b.width, b.height) {
-        return Err(Error::parameter(
-            "film",
-            format!(
-                "cannot compare a {}x{} film with a {}x{} film",
-                a.width, a.height, b.width, b.height
-            ),
-        ));
-    }
+    a.same_size(b)?;
     if a.pixels.is_empty() {
         return Ok(0.0);
     }

@@ -204,13 +204,7 @@ mod tests {
     fn any_split_and_order_gives_the_same_bits() {
         // Values spread over 60 binary orders of magnitude, both signs: f32 sums of the
         // same values in different groupings differ, the exact sums must not.
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng::xorshift64(0x9e37_79b9_7f4a_7c15u64);
         let xs: Vec<f32> = (0..1000)
             .map(|_| {
                 let r = next();

@@ -58,10 +58,9 @@ impl Film {
         (sum / self.pixels.len() as f64).as_vec3()
     }
 
-    /// Root-mean-square difference over every channel of every pixel, in f64 so that
-    /// the sum of many small squares does not lose digits. Films of different sizes are
-    /// an error, not a number.
-    pub fn rmse(&self, other: &Film) -> Result<f64> {
+    /// `Ok` when `other` has this film's size; the error every comparison of two films
+    /// gives otherwise.
+    pub fn same_size(&self, other: &Film) -> Result<()> {
         if (self.width, self.height) != (other.width, other.height) {
             return Err(Error::parameter(
                 "film",
@@ -71,6 +70,14 @@ impl Film {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// Root-mean-square difference over every channel of every pixel, in f64 so that
+    /// the sum of many small squares does not lose digits. Films of different sizes are
+    /// an error, not a number.
+    pub fn rmse(&self, other: &Film) -> Result<f64> {
+        self.same_size(other)?;
         if self.pixels.is_empty() {
             return Ok(0.0);
         }

@@ -285,13 +285,7 @@ mod tests {
         // (so some stay on the f64 path and some fall back part-way through), weights
         // from a Gaussian-like range including 0, radiance with zeros, subnormals and
         // values near f32::MAX; every split of each set merged back.
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng::xorshift64(0x2545_f491_4f6c_dd1du64);
         let (mut fast, mut fell_back) = (0, 0);
         for case in 0..400 {
             let n = 1 + (next() % 300) as usize;
@@ -314,7 +308,7 @@ mod tests {
             };
             let samples: Vec<(f32, Vec3)> = (0..n)
                 .map(|_| {
-                    let w = if next() % 7 == 0 {
+                    let w = if next().is_multiple_of(7) {
                         0.0
                     } else {
                         (next() % 1000) as f32 / 999.0
@@ -382,13 +376,7 @@ mod tests {
     /// product overflows and is left out, as the filter drops it) and random ones.
     #[test]
     fn one_sample_value_equals_the_value_of_one_added_sample() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng::xorshift64(0x9e37_79b9_7f4a_7c15u64);
         let specials = [0.0, -0.0, 1.0, f32::from_bits(1), 1e-39, 3e38, -2.5, 0.5];
         let (mut checked, mut zero_weight, mut unit_weight) = (0, 0, 0);
         for case in 0..20_000 {

@@ -96,13 +96,8 @@ mod tests {
         // the point's bound, in random directions on both sides: zero re-hits.
         let n = Vec3::new(0.3, 0.8, -0.52).normalize();
         let p0 = Vec3::new(1.0e4, -2.5e3, 3.3e3);
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut next = crate::test_rng::xorshift64(0x2545_f491_4f6c_dd1du64);
+        let mut rnd = || (next() >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0;
         let mut hits = 0;
         let mut on_plane = 0;
         let mut raw = 0;

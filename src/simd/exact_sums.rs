@@ -105,13 +105,7 @@ mod tests {
             1.0,
             -0.75,
         ];
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::test_rng::xorshift64(0x9e37_79b9_7f4a_7c15u64);
         let (mut exact, mut not) = (0, 0);
         for _ in 0..2000 {
             let (mut f1, mut a1, mut u1) = ([0.0f64; 7], [0.0f64; 7], i32::MAX);
@@ -122,7 +116,7 @@ mod tests {
             for _ in 0..samples {
                 let xs: [f32; 7] = std::array::from_fn(|_| {
                     let r = next();
-                    if r % 50 == 0 {
+                    if r.is_multiple_of(50) {
                         specials[(r >> 8) as usize % specials.len()]
                     } else {
                         // random sign, exponent in the set's window, mantissa
