@@ -27,7 +27,7 @@ pub struct RenderOptions {
     /// Pixel reconstruction filter.
     pub filter: FilterKind,
     /// Shadow rays through glass attenuated by its transmission instead of blocked
-    /// ([`shadow`]).
+    /// ([`shadow`](super::shadow)).
     pub transmitted_shadows: bool,
     /// Called as tiles finish; `None` for silence.
     pub progress: Option<ProgressFn>,
@@ -35,7 +35,7 @@ pub struct RenderOptions {
     pub crop: Option<PixelBounds>,
     /// Render only these eye samples of each pixel's `spp` (`--sample-range`).
     pub sample_range: Option<Range<u32>>,
-    /// Also return every pixel's filter sums, encoded ([`RenderOutput::sums`]).
+    /// Also return every pixel's filter sums, encoded ([`RenderOutput::sums`](super::RenderOutput::sums)).
     pub keep_sums: bool,
 }
 

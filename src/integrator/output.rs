@@ -11,7 +11,7 @@ pub struct RenderOutput {
     pub film: Film,
     /// Which pixels of the full image `film` holds.
     pub region: PixelBounds,
-    /// With [`RenderOptions::keep_sums`]: the filter sums of every pixel of `region`,
+    /// With [`RenderOptions::keep_sums`](super::RenderOptions::keep_sums): the filter sums of every pixel of `region`,
     /// row-major, as pixel records of a partial image ([`crate::film::partial`]).
     pub sums: Option<Vec<u8>>,
     pub rays: RayCounts,
