@@ -15,6 +15,19 @@
 //! scaling"): the previous builder gathered a 32-byte box and a 16-byte centroid
 //! through an index array and copied each partition back from scratch; at 10^7
 //! triangles it built at 0.65 Mtriangles/s, half its rate at 10^5.
+//!
+//! Dead end, 2026-11-24 (commit b43836f on branch `builder3`, reverted): the children
+//! binned inside their parent's partition, one pass per level instead of two. Each bin
+//! also kept its centroids' bounds (a second 8-lane box per axis), so a split gave its
+//! children's centroid bounds, hence their grids, before the partition; nodes of at
+//! least 4096 references then partitioned and binned both children in one loop (two
+//! bin sets per side). Same trees bit for bit (tested against this builder at 1 and 2
+//! threads), but slower: CPU ms per 1-thread build at 10^6, medians of 3 interleaved
+//! rounds of 3 builds, 729 (681-739) against 697 (646-708); 10^7 one build each, 9,386
+//! against 8,631 (load ~9). perf: the fused loop took 22.6 % of the samples where the
+//! binning of large nodes (13 %) and their partition's share had been; per reference it
+//! stores six 8-lane bin boxes and three counts where the two passes stored three and
+//! three plus the reference, and the stores, not the saved read, set its pace.
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
@@ -1337,6 +1350,106 @@ mod tests {
             }
             let filled = want[0][..bins_n].iter().filter(|w| w.0 > 0).count();
             assert!(filled == bins_n, "{filled} of {bins_n} bins filled");
+        }
+    }
+
+    /// Compares two trees node by node: shape, leaf ranges, and boxes equal as numbers
+    /// (a zero's sign may follow the grouping of a parallel reduction, which depends on
+    /// the thread count); returns the node count.
+    fn same_tree(a: &BuildNode, b: &BuildNode) -> usize {
+        let vals = |b: &BBox| {
+            let (lo, hi) = (b.min.to_array(), b.max.to_array());
+            [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]]
+        };
+        match (a, b) {
+            (
+                BuildNode::Leaf {
+                    bounds: ba,
+                    start: sa,
+                    count: ca,
+                },
+                BuildNode::Leaf {
+                    bounds: bb,
+                    start: sb,
+                    count: cb,
+                },
+            ) => {
+                assert_eq!(vals(ba), vals(bb));
+                assert_eq!((sa, ca), (sb, cb));
+                1
+            }
+            (
+                BuildNode::Interior {
+                    bounds: ba,
+                    children: ca,
+                },
+                BuildNode::Interior {
+                    bounds: bb,
+                    children: cb,
+                },
+            ) => {
+                assert_eq!(vals(ba), vals(bb));
+                1 + same_tree(&ca[0], &cb[0]) + same_tree(&ca[1], &cb[1])
+            }
+            _ => panic!("a leaf against an interior node"),
+        }
+    }
+
+    /// The parallel build (nodes of at least [`PARALLEL_NODE`] references partitioned
+    /// in parallel chunks, subtrees on two threads) builds the 1-thread build's tree,
+    /// node for node, with the same primitive order, on the procedural mesh and on a
+    /// soup of random triangles, for the BVH2's and the BVH8's options; the BVH8 built
+    /// over each at both thread counts validates.
+    #[test]
+    fn two_threads_build_the_one_thread_tree() {
+        let mut x = 0x1234_5678_u32;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            (x % 100_000) as f32 * 0.001
+        };
+        let soup: Vec<[glam::Vec3; 3]> = (0..40_000)
+            .map(|_| {
+                let a = glam::Vec3::new(next(), next(), next() * 0.1);
+                [
+                    a,
+                    a + glam::Vec3::new(next(), 0.0, 0.0) * 0.02,
+                    a + glam::Vec3::splat(next() * 0.01),
+                ]
+            })
+            .collect();
+        let meshes = [
+            crate::bench::BenchMesh::procedural(60_000).triangles,
+            crate::accel::Triangles::from_corners(&soup),
+        ];
+        let pools = [1, 2].map(|t| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .unwrap()
+        });
+        for tris in &meshes {
+            for opts in [
+                Bvh2BuildOptions::default(),
+                // The BVH8's options for triangles (`bvhn::tree::wide_build_options`).
+                Bvh2BuildOptions {
+                    max_leaf: 4,
+                    block_size: 4,
+                    ..Bvh2BuildOptions::default()
+                },
+            ] {
+                let [(one, one_ids), (two, two_ids)] = pools
+                    .each_ref()
+                    .map(|p| p.install(|| build_tree(tris, opts)));
+                let nodes = same_tree(one.as_ref().unwrap(), two.as_ref().unwrap());
+                assert!(nodes > tris.v0.len() / 4, "{nodes} nodes");
+                assert_eq!(one_ids, two_ids);
+            }
+            for p in &pools {
+                let bvh = p.install(|| crate::accel::Bvh8::build(tris.clone()));
+                bvh.validate().expect("a valid BVH8");
+            }
         }
     }
 
