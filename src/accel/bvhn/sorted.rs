@@ -11,6 +11,18 @@
 //! packets of [`PACKET_WIDTH`]; every packet then passes the packet kernel's coherence
 //! test (one group), and its answers are the packet kernel's, so the same as the scalar
 //! oracle's (the equivalence tests compare them).
+//!
+//! Measured: a dead end on AVX2, kept as bench modes (`bvh4-sorted`, `bvh8-sorted`,
+//! `bvh8-sorted@K`) for the AVX-512 machine, where a 16-ray packet is one register.
+//! Bunny, diffuse rays, 1 thread, `examples/stream_profile` (5 passes, medians, Mrays/s,
+//! 2026-11-24 07:13 and 07:25 UTC, loaded: cpu 0.40-0.55, interleaved): `bvh8-packet`
+//! 1.41/1.55/1.36 and 1.21/1.00/1.23, `bvh8-single` 1.18/1.02/1.05, `bvh8-stream`
+//! 1.53/1.48/1.80; `bvh8-sorted` 0.92/0.77/0.83, `bvh4-sorted` 0.87/0.90/0.82, and with
+//! the ray-by-ray threshold raised (`@K`: a part with fewer than K active rays finishes
+//! ray by ray) `@8` 0.88/0.71/0.72, `@12` 0.73/0.88/0.67, `@15` 0.77/0.68/0.68. Rays of
+//! one octant from one 8x8 tile still part after a node or two, and the packet kernel
+//! then pays per subtree what a single ray pays once (a `closest_from` per subtree
+//! left, each with its setup), so even `@15` loses a third to the ray-by-ray path.
 
 use super::node::{NodeWidth, WideNode, Width};
 use super::tree::Bvh;
