@@ -520,8 +520,8 @@ fn stream_compaction_matches_scalar_on_all_256_masks() {
 /// The packet kernels' tunings (`bench`'s `bvh8-packet8` and `bvh8-packet@K` modes): the
 /// ray-by-ray threshold from 1 (a part never leaves packet traversal) to 17 (always ray
 /// by ray), and 16-ray packets traced as two 8-ray halves (`*_packet8`) or slices cut in
-/// eights (`*_batch8`), on camera rays, shadow segments and random rays, against the
-/// scalar BVH2: bit-identical hits and the same occlusion; partial packets (down to 5
+/// eights (`*_batch8`), and the sorted packets (`*_sorted`), on camera rays, shadow
+/// segments and random rays, against the scalar BVH2: bit-identical hits and the same occlusion; partial packets (down to 5
 /// lanes, so the second half is sometimes absent) leave the lanes past `len` untouched.
 #[test]
 fn packet_tunings_match_the_scalar_oracle() {
@@ -580,6 +580,17 @@ fn packet_tunings<const N: usize, T: WideNode<N>>(
         let mut o8 = vec![false; rays.len()];
         bvh.closest_hit_batch8(rays, &mut b8);
         bvh.any_hit_batch8(rays, &mut o8);
+        // Sorted packets (`bvh8-sorted@K`): regrouped by octant at this threshold.
+        let mut bs = vec![None; rays.len()];
+        let mut os = vec![false; rays.len()];
+        bvh.closest_hit_sorted(rays, &mut bs);
+        bvh.any_hit_sorted(rays, &mut os);
+        for (i, (&(wh, wo), (h, o))) in want.iter().zip(bs.iter().zip(&os)).enumerate() {
+            assert!(
+                same_hit(wh, *h) && wo == *o,
+                "{what}: ray {i} sorted: {h:?} occluded {o}, scalar {wh:?} {wo}"
+            );
+        }
         // SoA packets, whole and as halves.
         let mut at = 0;
         for (j, chunk) in rays.chunks(16).enumerate() {
