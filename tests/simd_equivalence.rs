@@ -1,5 +1,5 @@
 //! Scalar-vs-SIMD equivalence: the scalar BVH2 traversal (the oracle), and the
-//! single-ray SIMD kernel, the packet kernel and the stream kernel of both the BVH4 and
+//! single-ray SIMD kernel, the packet kernel, the sorted packets and the stream kernel of both the BVH4 and
 //! the BVH8, with exact and with compressed (quantised) nodes, get the same rays and must
 //! return bit-identical hits (primitive, `t`, `u`, `v`: the kernels are twins of the
 //! scalar test, the same operations in the same order, and a compressed node's boxes
@@ -81,6 +81,19 @@ where
     bvhn.closest_stream(rays, &mut stream);
     let mut stream_occ = vec![false; rays.len()];
     bvhn.any_stream(rays, &mut stream_occ);
+    // Sorted packets: the set regrouped by octant and dominant axis, whole and in
+    // tiles of 64 (the bench's shape).
+    let mut sorted = vec![None; rays.len()];
+    bvhn.closest_hit_sorted(rays, &mut sorted);
+    let mut sorted_occ = vec![false; rays.len()];
+    bvhn.any_hit_sorted(rays, &mut sorted_occ);
+    let mut tiled = vec![None; rays.len()];
+    let mut tiled_occ = vec![false; rays.len()];
+    for (k, r) in rays.chunks(64).enumerate() {
+        let at = 64 * k;
+        bvhn.closest_hit_sorted(r, &mut tiled[at..at + r.len()]);
+        bvhn.any_hit_sorted(r, &mut tiled_occ[at..at + r.len()]);
+    }
     let mut chunked = vec![None; rays.len()];
     let mut chunked_occ = vec![false; rays.len()];
     let mut at = 0;
@@ -108,7 +121,12 @@ where
                 packet[i]
             ));
         }
-        for (kind, got) in [("stream", stream[i]), ("stream-chunked", chunked[i])] {
+        for (kind, got) in [
+            ("stream", stream[i]),
+            ("stream-chunked", chunked[i]),
+            ("sorted", sorted[i]),
+            ("sorted-tiles", tiled[i]),
+        ] {
             if !same_hit(want, got) {
                 bad.push(format!("ray {i}: scalar {want:?} vs bvh{N}-{kind} {got:?}"));
             }
@@ -118,14 +136,18 @@ where
             || occ != packet_occ[i]
             || occ != stream_occ[i]
             || occ != chunked_occ[i]
+            || occ != sorted_occ[i]
+            || occ != tiled_occ[i]
         {
             bad.push(format!(
                 "ray {i}: bvh{N} occlusion scalar {occ}, single {}, packet {}, stream {}, \
-                 stream-chunked {}",
+                 stream-chunked {}, sorted {}, sorted-tiles {}",
                 bvhn.any_single(r),
                 packet_occ[i],
                 stream_occ[i],
-                chunked_occ[i]
+                chunked_occ[i],
+                sorted_occ[i],
+                tiled_occ[i]
             ));
         }
     }
@@ -498,8 +520,8 @@ fn stream_compaction_matches_scalar_on_all_256_masks() {
 /// The packet kernels' tunings (`bench`'s `bvh8-packet8` and `bvh8-packet@K` modes): the
 /// ray-by-ray threshold from 1 (a part never leaves packet traversal) to 17 (always ray
 /// by ray), and 16-ray packets traced as two 8-ray halves (`*_packet8`) or slices cut in
-/// eights (`*_batch8`), on camera rays, shadow segments and random rays, against the
-/// scalar BVH2: bit-identical hits and the same occlusion; partial packets (down to 5
+/// eights (`*_batch8`), and the sorted packets (`*_sorted`), on camera rays, shadow
+/// segments and random rays, against the scalar BVH2: bit-identical hits and the same occlusion; partial packets (down to 5
 /// lanes, so the second half is sometimes absent) leave the lanes past `len` untouched.
 #[test]
 fn packet_tunings_match_the_scalar_oracle() {
@@ -558,6 +580,17 @@ fn packet_tunings<const N: usize, T: WideNode<N>>(
         let mut o8 = vec![false; rays.len()];
         bvh.closest_hit_batch8(rays, &mut b8);
         bvh.any_hit_batch8(rays, &mut o8);
+        // Sorted packets (`bvh8-sorted@K`): regrouped by octant at this threshold.
+        let mut bs = vec![None; rays.len()];
+        let mut os = vec![false; rays.len()];
+        bvh.closest_hit_sorted(rays, &mut bs);
+        bvh.any_hit_sorted(rays, &mut os);
+        for (i, (&(wh, wo), (h, o))) in want.iter().zip(bs.iter().zip(&os)).enumerate() {
+            assert!(
+                same_hit(wh, *h) && wo == *o,
+                "{what}: ray {i} sorted: {h:?} occluded {o}, scalar {wh:?} {wo}"
+            );
+        }
         // SoA packets, whole and as halves.
         let mut at = 0;
         for (j, chunk) in rays.chunks(16).enumerate() {

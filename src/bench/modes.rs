@@ -150,6 +150,35 @@ impl TraceMode for HalfPackets {
     }
 }
 
+/// A tile's rays regrouped by direction octant and dominant axis into packets
+/// (`Bvh::closest_hit_sorted`), as Embree's `rtcIntersect1M` sorts an incoherent
+/// stream into packets.
+pub struct SortedPackets<const N: usize> {
+    pub name: &'static str,
+    pub bvh: Bvh<Triangles, N>,
+}
+
+impl<const N: usize> TraceMode for SortedPackets<N>
+where
+    Width<N>: NodeWidth,
+{
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.bvh.closest_hit_sorted(rays, out);
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        self.bvh.any_hit_sorted(rays, out);
+    }
+    fn build_ms(&self) -> f64 {
+        self.bvh.info().build_ms
+    }
+    fn memory_bytes(&self) -> usize {
+        self.bvh.info().memory_bytes
+    }
+}
+
 /// The stream entry points of [`Accel`]: a band's valid rays as one batch.
 pub struct Streamed {
     pub name: &'static str,
@@ -251,6 +280,16 @@ pub const PACKET_TUNING_MODES: &[&str] = &[
     "bvh8-packet8@7",
 ];
 
+/// Sorted packets (see [`SortedPackets`]), run when asked for by name: slower than the
+/// ray-by-ray path on diffuse rays on AVX2 (numbers in `accel/bvhn/sorted.rs`).
+pub const SORTED_MODES: &[&str] = &[
+    "bvh4-sorted",
+    "bvh8-sorted",
+    "bvh8-sorted@8",
+    "bvh8-sorted@12",
+    "bvh8-sorted@15",
+];
+
 /// The name of a mode `bench` knows, as a `'static` string.
 pub fn known_mode(name: &str) -> Option<&'static str> {
     MODES
@@ -258,6 +297,7 @@ pub fn known_mode(name: &str) -> Option<&'static str> {
         .chain(COMPRESSED_MODES)
         .chain(PREFETCH_MODES)
         .chain(PACKET_TUNING_MODES)
+        .chain(SORTED_MODES)
         .copied()
         .find(|&m| m == name)
 }
@@ -296,6 +336,17 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
             name,
             accel: AccelKind::Bvh2.build(tris),
         }));
+    }
+    if let Some(rest) = name.strip_prefix("bvh8-sorted") {
+        let mut bvh = Bvh::<Triangles, 8>::build(tris);
+        if let Some(k) = rest.strip_prefix('@').and_then(|k| k.parse::<u32>().ok()) {
+            bvh.set_packet_min_active([k; 2]);
+        }
+        return Some(Box::new(SortedPackets { name, bvh }));
+    }
+    if name == "bvh4-sorted" {
+        let bvh = Bvh::<Triangles, 4>::build(tris);
+        return Some(Box::new(SortedPackets { name, bvh }));
     }
     let (name_base, min_active) = match name.split_once('@') {
         Some((b, k)) => (b, k.parse::<u32>().ok()),

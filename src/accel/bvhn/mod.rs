@@ -19,7 +19,8 @@
 //! enter; a part with few active rays left finishes a subtree ray by ray, as Embree's
 //! hybrid traversal does. Large incoherent batches go through the stream kernel
 //! (`closest_stream`/`any_stream`): the rays binned by octant, each node tested once for
-//! the list of rays that reached it (`stream.rs`).
+//! the list of rays that reached it (`stream.rs`). `closest_hit_sorted`/`any_hit_sorted`
+//! regroup a batch by octant and dominant axis into packets first (`sorted.rs`).
 //!
 //! Nodes come exact ([`BvhNode`], the default) or compressed ([`QNode`]: child boxes
 //! quantised to 8 bits per plane against the node's box, rounded outward, half or a
@@ -30,7 +31,8 @@
 //! hybrid (packet) traversal apart: `node.rs` (layout and leaf encoding), `stack.rs`,
 //! `qnode.rs` (the compressed node), `tree.rs` (the structure, its build and the
 //! `Accel` entry points), `validate.rs`, `collapse.rs`,
-//! `single.rs`, `packet_setup.rs`, `packet_bounds.rs`, `packet.rs` and `stream.rs`.
+//! `single.rs`, `packet_setup.rs`, `packet_bounds.rs`, `packet.rs`, `sorted.rs` and
+//! `stream.rs`.
 
 mod collapse;
 mod node;
@@ -39,6 +41,7 @@ mod packet_bounds;
 mod packet_setup;
 mod qnode;
 mod single;
+mod sorted;
 mod stack;
 mod stream;
 #[cfg(test)]
