@@ -6,7 +6,8 @@
 //! which covers the whole linear motion; `intersect` places the primitive at the
 //! ray's time (`RayQuery::time`).
 
-use super::{Accel, AccelInfo, AccelKind, Bvh2, Hit, Primitives};
+use super::{Accel, AccelInfo, AccelKind, Bvh2, Primitives};
+use crate::geometry::Hit;
 use crate::geometry::{Aabb, PrimHit, Ray, RayQuery, intersect_sphere, intersect_triangle};
 use crate::scene::MotionSet;
 use glam::Vec3;

@@ -1,0 +1,95 @@
+//! The interface every structure implements ([`Accel`]) and its build statistics.
+
+use super::{HitFilter, QueryOptions, TraversalCounts};
+use crate::geometry::{Hit, Ray, RayPacket};
+
+/// Closest-hit and any-hit queries over one primitive set.
+///
+/// Interval semantics for every implementation: a hit counts only if `tmin < t < tmax`
+/// (both strict), and an invalid ray (NaN/inf components, zero direction, empty interval)
+/// hits nothing. `Hit::prim` is the primitive's index in the set the structure was built
+/// from, whatever order the structure keeps internally.
+pub trait Accel: Send + Sync {
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit>;
+    fn any_hit(&self, ray: &Ray) -> bool;
+
+    /// Filtered query (Embree's intersection filter): `filter` is offered each
+    /// candidate hit nearer than the nearest it accepted, each exactly once, and
+    /// returns whether to accept it; the result is the nearest accepted candidate, or
+    /// with `opts.any` the first. Back faces are dropped first with
+    /// `opts.cull_back_faces`. Single rays on every structure, separate from the
+    /// plain queries so that they pay nothing. Full semantics: [`filter`](super::filter).
+    fn filtered_hit(
+        &self,
+        ray: &Ray,
+        opts: QueryOptions,
+        filter: &mut HitFilter<'_>,
+    ) -> Option<Hit>;
+
+    /// Closest hits for a batch of rays. Structures with packet kernels override this.
+    fn closest_hit_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.closest_hit(r);
+        }
+    }
+
+    /// Occlusion for a batch of rays. Structures with packet kernels override this.
+    fn any_hit_batch(&self, rays: &[Ray], out: &mut [bool]) {
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.any_hit(r);
+        }
+    }
+
+    /// Closest hits for a large batch of rays (hundreds to thousands, incoherent ones
+    /// above all) traced as one stream. Structures with a stream kernel (BVH4/BVH8:
+    /// `bvhn/stream.rs`) override this; the others trace the batch as a batch.
+    fn closest_hit_stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.closest_hit_batch(rays, out);
+    }
+
+    /// Occlusion for a large batch of rays traced as one stream.
+    fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
+        self.any_hit_batch(rays, out);
+    }
+
+    /// Closest hits for one packet of rays in structure-of-arrays form (lanes
+    /// `0..packet.len` into `out[..packet.len]`). Structures with packet kernels
+    /// override this; the batch entry points of those go through it.
+    fn closest_hit_packet(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
+        for (i, o) in out[..packet.len].iter_mut().enumerate() {
+            *o = self.closest_hit(&packet.ray(i));
+        }
+    }
+
+    /// Occlusion for one packet of rays in structure-of-arrays form.
+    fn any_hit_packet(&self, packet: &RayPacket, out: &mut [bool]) {
+        for (i, o) in out[..packet.len].iter_mut().enumerate() {
+            *o = self.any_hit(&packet.ray(i));
+        }
+    }
+
+    /// What was built and what it cost.
+    fn info(&self) -> AccelInfo;
+
+    /// The closest-hit traversal's work for one ray (node visits, primitive tests), from
+    /// a counting twin of the traversal so the normal path pays nothing; `None` where a
+    /// structure has no counting twin.
+    fn traversal_counts(&self, _ray: &Ray) -> Option<TraversalCounts> {
+        None
+    }
+}
+
+/// Build statistics of one structure.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AccelInfo {
+    pub name: &'static str,
+    pub primitives: usize,
+    pub build_ms: f64,
+    pub nodes: usize,
+    pub leaves: usize,
+    pub max_depth: usize,
+    pub memory_bytes: usize,
+    /// SAH cost of the tree (traversal cost 1, intersection cost 1 per primitive,
+    /// normalised by the root area); 0 where it does not apply.
+    pub sah_cost: f64,
+}
