@@ -24,6 +24,7 @@ pub mod queues;
 pub mod recursive;
 pub mod region;
 pub mod sampling;
+pub(crate) mod area_light;
 pub(crate) mod shade_stage;
 pub mod shader;
 pub mod shadow;
