@@ -33,9 +33,9 @@ use super::shade_stage::{LanePaths, Sinks, push_shadow};
 use super::shader::Shader;
 use super::sobol::SobolDim;
 use super::tiny_shadow::LaneOccluders;
-use crate::simd::{Lanes, Packet};
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
 use crate::simd::lanes3::V3;
+use crate::simd::{Lanes, Packet};
 use glam::Vec3;
 
 /// The quad lights of a scene in lane form, and the tiny scene's occluders where the
@@ -300,7 +300,13 @@ mod tests {
     }
 
     /// Every field of a child queue, bit for bit.
-    type QueueBits = (Vec<[u32; 9]>, Vec<u32>, Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<u64>);
+    type QueueBits = (
+        Vec<[u32; 9]>,
+        Vec<u32>,
+        Vec<[u32; 3]>,
+        Vec<[u32; 3]>,
+        Vec<u64>,
+    );
 
     fn queue_bits(q: &Option<RayQueue>) -> Option<QueueBits> {
         q.as_ref().map(|q| {

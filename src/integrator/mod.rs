@@ -11,6 +11,7 @@
 
 pub mod adaptive;
 pub mod aov;
+pub(crate) mod area_light;
 pub mod budget;
 pub mod camera_packets;
 pub mod camera_rays;
@@ -24,7 +25,6 @@ pub mod queues;
 pub mod recursive;
 pub mod region;
 pub mod sampling;
-pub(crate) mod area_light;
 pub(crate) mod shade_stage;
 pub mod shader;
 pub mod shadow;

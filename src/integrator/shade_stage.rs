@@ -31,8 +31,7 @@ use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::simd::Packet;
 use crate::simd::direct_light::{
-    Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light,
-    point_light,
+    Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light, point_light,
 };
 use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
 use crate::simd::specular;
@@ -449,7 +448,14 @@ fn shade_group_lanes(
                 path,
                 depth,
             };
-            shade_quads(shader, &lanes.quads, &h, &mut stream, sinks, &mut scratch.light);
+            shade_quads(
+                shader,
+                &lanes.quads,
+                &h,
+                &mut stream,
+                sinks,
+                &mut scratch.light,
+            );
         }
         if spawns && !lane_children {
             let si = batch.interaction(k, material);

@@ -29,11 +29,11 @@ use super::shadow::ShadowFilter;
 use crate::accel::{Occluder, SceneAccel, TINY_MAX_PRIMITIVES, TinyScene, TinyScratch};
 use crate::geometry::Ray;
 use crate::simd::Packet;
+use crate::simd::direct_light::QuadLight;
 use crate::simd::glass_shadow::settle_gathered;
 use crate::simd::kernels::RayLanes;
-use crate::simd::lanes3::V3;
-use crate::simd::direct_light::QuadLight;
 use crate::simd::kernels::sphere_lanes;
+use crate::simd::lanes3::V3;
 use crate::simd::tiny::{TinyGroup, TrianglePlane, lane_shear_keys};
 use crate::stats::RayCounts;
 use glam::Vec3;
@@ -143,7 +143,7 @@ pub struct LaneOccluders {
     spheres: Vec<(Vec3, f32)>,
     /// Where the sphere set is split: the opaque spheres, the glass spheres and their
     /// transmission (`SphereShadow::Glass`).
-    glass: Option<(Vec<(Vec3, f32)>, Vec<(Vec3, f32)>, Vec3)>,
+    glass: Option<GlassSet>,
 }
 
 /// Which spheres the light samples of one shading point may meet
@@ -185,7 +185,8 @@ pub fn sphere_clear_of(origin: Vec3, q: &QuadLight, center: Vec3, radius: f32) -
     let reach = rel.iter().fold(0.0f32, |m, r| m.max(r.length()));
     let scale = dist + radius + reach + origin.abs().max_element() + center.abs().max_element();
     let m = 1e-4 * scale;
-    if !(dist > radius + m) || !m.is_finite() {
+    // NaN anywhere: not clear.
+    if !m.is_finite() || dist <= radius + m {
         return false;
     }
     // The light entirely behind the plane through `origin` across `f`.
@@ -197,10 +198,15 @@ pub fn sphere_clear_of(origin: Vec3, q: &QuadLight, center: Vec3, radius: f32) -
     for i in 0..4 {
         let n = rel[i].cross(rel[(i + 1) % 4]);
         let len = n.length();
-        if !(len > 1e-3 * rel[i].length() * rel[(i + 1) % 4].length()) {
+        let min = 1e-3 * rel[i].length() * rel[(i + 1) % 4].length();
+        if len.is_nan() || min.is_nan() || len <= min {
             continue;
         }
-        let n = if n.dot(inside) > 0.0 { -n / len } else { n / len };
+        let n = if n.dot(inside) > 0.0 {
+            -n / len
+        } else {
+            n / len
+        };
         if n.dot(f) > radius + m {
             return true;
         }
@@ -215,6 +221,9 @@ pub fn sphere_clear_of(origin: Vec3, q: &QuadLight, center: Vec3, radius: f32) -
     }
     false
 }
+
+/// The opaque spheres, the glass spheres and the glass's transmission.
+type GlassSet = (Vec<(Vec3, f32)>, Vec<(Vec3, f32)>, Vec3);
 
 /// What [`LaneOccluders::settle`] found for sixteen lanes.
 pub struct LaneSettled {
@@ -433,7 +442,8 @@ mod tests {
             let p_error = Vec3::splat(1e-6);
             for _ in 0..64 {
                 let point = q.corner + q.edge1 * unit() + q.edge2 * unit();
-                let ray = crate::geometry::spawn_ray_to(p, p_error, Vec3::Y, point, q.p_error, q.normal);
+                let ray =
+                    crate::geometry::spawn_ray_to(p, p_error, Vec3::Y, point, q.p_error, q.normal);
                 let query = RayQuery::new(&ray).expect("a valid segment");
                 assert!(
                     intersect_sphere(&query, center, radius, ray.tmax).is_none(),

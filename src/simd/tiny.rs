@@ -181,7 +181,9 @@ impl TinyGroup {
     /// the ray's fields exactly (`RayQuery::new` reads origin, direction and interval;
     /// the time does not enter the triangle test).
     fn query(&self, i: usize) -> RayQuery {
-        let at = |a: &[TinyLanes; 3]| Vec3::new(a[0].to_array()[i], a[1].to_array()[i], a[2].to_array()[i]);
+        let at = |a: &[TinyLanes; 3]| {
+            Vec3::new(a[0].to_array()[i], a[1].to_array()[i], a[2].to_array()[i])
+        };
         let ray = Ray {
             origin: at(&self.lanes.o),
             dir: at(&self.lanes.d),
@@ -483,8 +485,16 @@ mod tests {
         let mut next = xorshift64(0x9e37_79b9_7f4a_7c15);
         let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32;
         let triangles = [
-            [Vec3::new(-4.0, 0.0, -4.0), Vec3::new(-4.0, 0.0, 4.0), Vec3::new(4.0, 0.0, -4.0)],
-            [Vec3::new(-1.3, 0.2, -2.0), Vec3::new(2.1, 1.7, 0.3), Vec3::new(0.4, -0.8, 2.9)],
+            [
+                Vec3::new(-4.0, 0.0, -4.0),
+                Vec3::new(-4.0, 0.0, 4.0),
+                Vec3::new(4.0, 0.0, -4.0),
+            ],
+            [
+                Vec3::new(-1.3, 0.2, -2.0),
+                Vec3::new(2.1, 1.7, 0.3),
+                Vec3::new(0.4, -0.8, 2.9),
+            ],
             [
                 Vec3::new(-1000.0, 0.0, -1000.0),
                 Vec3::new(-1000.0, 0.0, 1000.0),
@@ -497,7 +507,11 @@ mod tests {
             let n = (c[1] - c[0]).cross(c[2] - c[0]).normalize();
             for i in 0..4000 {
                 let (u, v) = (unit(), unit());
-                let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+                let (u, v) = if u + v > 1.0 {
+                    (1.0 - u, 1.0 - v)
+                } else {
+                    (u, v)
+                };
                 let (p, p_err) = triangle_point(*c, u, v);
                 let off = (unit() - 0.5) * 4.0;
                 let target = p + n * off * 3.0 + Vec3::new(unit() - 0.5, 0.0, unit() - 0.5) * 6.0;
