@@ -83,6 +83,16 @@ impl TinyScene {
         })
     }
 
+    /// The triangles (corners), in scene order.
+    pub fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
+
+    /// The spheres (centre, radius), in scene order.
+    pub fn spheres(&self) -> &[(Vec3, f32)] {
+        &self.spheres
+    }
+
     /// Primitives held.
     pub fn len(&self) -> usize {
         self.triangles.len() + self.spheres.len()
@@ -123,6 +133,7 @@ impl TinyScene {
             }
         };
         let mut ids = [0u32; TINY_WIDTH];
+        let ids_mask = || ((1u64 << TINY_WIDTH) - 1) as u32;
         let mut windows = rays.chunks_exact(TINY_WIDTH);
         for (w, window) in windows.by_ref().enumerate() {
             // Sixteen rays in a row of one key, all valid (the common case): a group
@@ -133,7 +144,7 @@ impl TinyScene {
                 for (n, id) in ids.iter_mut().enumerate() {
                     *id = first + n as u32;
                 }
-                f(&ids, &TinyGroup::from_lanes(rays, &ids, k, lanes, tmax));
+                f(&ids, &TinyGroup::from_lanes(k, lanes, tmax, ids_mask()));
             } else {
                 for i in 0..TINY_WIDTH {
                     deal(first as usize + i, &mut f);

@@ -11,6 +11,7 @@
 
 pub mod adaptive;
 pub mod aov;
+pub(crate) mod area_light;
 pub mod budget;
 pub mod camera_packets;
 pub mod camera_rays;

@@ -20,19 +20,18 @@
 //! Not in lanes (the scalar shader handles them, per material or per scene): image
 //! textures, spot, disk and sphere lights, and the environment.
 
+use super::area_light::{LightPoints, QuadLights, ShadingPoint, shade_quads};
 use super::hit_batch::HitBatch;
-use super::path_keys::HitSet;
 use super::path_keys::child_path;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shader::{ChildKind, Emitted, Shader};
-use super::sobol::SobolDim;
+use super::tiny_shadow::LaneOccluders;
 use crate::accel::SceneHit;
 use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::simd::Packet;
 use crate::simd::direct_light::{
-    Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light,
-    point_light, quad_light,
+    Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light, point_light,
 };
 use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
 use crate::simd::specular;
@@ -61,11 +60,8 @@ pub(crate) struct Sinks {
 pub(crate) struct ShadeScratch {
     pub batch: HitBatch,
     albedo: Vec<Vec3>,
-    /// Scratch of the light points of a pattern drawn as pairs.
-    points: Vec<(f32, f32)>,
-    /// The light points of one hit as lanes: first and second coordinates.
-    u: Vec<f32>,
-    v: Vec<f32>,
+    /// The light points of one hit (`area_light`).
+    light: LightPoints,
 }
 
 /// What the lane path of a scene needs: which materials it covers and the lights in
@@ -77,7 +73,7 @@ pub(crate) struct LaneShading {
     points: Vec<(u32, Vec3, Vec3)>,
     /// `(light, wi, irradiance)`: `wi` towards the light, as the scalar shader's.
     directional: Vec<(u32, Vec3, Vec3)>,
-    quads: Vec<(u32, QuadLight)>,
+    quads: QuadLights,
 }
 
 impl LaneShading {
@@ -87,7 +83,7 @@ impl LaneShading {
         }
         let mut points = Vec::new();
         let mut directional = Vec::new();
-        let mut quads = Vec::new();
+        let mut quads = QuadLights::default();
         for (i, light) in scene.lights.iter().enumerate() {
             match *light {
                 Light::Point {
@@ -103,7 +99,9 @@ impl LaneShading {
                     edge1,
                     edge2,
                     radiance,
-                } => quads.push((i as u32, QuadLight::new(corner, edge1, edge2, radiance))),
+                } => quads
+                    .lights
+                    .push((i as u32, QuadLight::new(corner, edge1, edge2, radiance))),
                 _ => return None,
             }
         }
@@ -117,6 +115,13 @@ impl LaneShading {
             directional,
             quads,
         })
+    }
+
+    /// Settles the quad lights' samples in lanes with `occluders` where given, instead
+    /// of queueing them (`area_light`).
+    pub fn with_area_occluders(mut self, occluders: Option<LaneOccluders>) -> LaneShading {
+        self.quads.occluders = occluders;
+        self
     }
 }
 
@@ -218,7 +223,7 @@ fn push_children(
 /// Per lane: the camera sample, the weight and the time of the ray that made the hit
 /// (or of the one hit whose light samples the lanes are).
 #[derive(Default)]
-struct LanePaths {
+pub(super) struct LanePaths {
     slot: [u32; 16],
     weight: [[f32; 16]; 3],
     time: [f32; 16],
@@ -232,7 +237,7 @@ impl LanePaths {
     }
 
     /// Every lane from one hit.
-    fn splat(slot: u32, weight: Vec3, time: f32) -> Self {
+    pub(super) fn splat(slot: u32, weight: Vec3, time: f32) -> Self {
         LanePaths {
             slot: [slot; 16],
             weight: [[weight.x; 16], [weight.y; 16], [weight.z; 16]],
@@ -256,7 +261,7 @@ impl LanePaths {
 /// Measured (perf, whitted_aa3x3, 1 thread): building each ray from the lane arrays at
 /// an index taken from the mask (a bounds check per field) and extending three arrays
 /// hit by hit was about a fifth of `shade_group_lanes`.
-fn push_shadow(
+pub(super) fn push_shadow(
     q: &mut ShadowQueue,
     s: &ShadowLanes,
     paths: &LanePaths,
@@ -419,7 +424,6 @@ fn shade_group_lanes(
         j += 16;
     }
 
-    let plan = &shader.plan;
     // Per hit below: the quad lights and the scalar child lobes. A group with neither
     // (every hit of whitted_base) skips the loop and its per-hit gathers.
     let per_hit = (lit && !lanes.quads.is_empty()) || (spawns && !lane_children);
@@ -432,63 +436,26 @@ fn shade_group_lanes(
         let path = queue.path[q];
         let mut stream = None;
         if lit && !lanes.quads.is_empty() {
-            let splat = |a: &super::hit_batch::Soa3| V3::splat(a.get(k));
-            let s = SurfaceLanes {
-                p: splat(&batch.p),
-                p_error: splat(&batch.p_error),
-                ng: splat(&batch.ng),
-                ns: splat(&batch.ns),
-                base: splat(&batch.base),
-                smooth: Packet::splat(batch.smooth[k]),
-                wo: splat(&batch.dir).negated(),
-                albedo: V3::splat(albedo[k - range.start]),
+            let h = ShadingPoint {
+                batch,
+                k,
+                albedo: albedo[k - range.start],
+                hl,
+                slot,
+                weight,
+                time,
+                pixel,
+                path,
+                depth,
             };
-            let samples = plan.shadow;
-            let paths = LanePaths::splat(slot, weight, time);
-            let lane_weight = V3::splat(weight);
-            for (index, quad) in &lanes.quads {
-                // The light points straight into lanes (`u`, `v` padded to 16).
-                super::path_keys::hit_points_split(
-                    plan.sampler,
-                    HitSet {
-                        seed: shader.seed,
-                        pixel,
-                        path,
-                        depth,
-                        dim: SobolDim::Light(*index),
-                    },
-                    samples,
-                    &mut stream,
-                    (&mut scratch.u, &mut scratch.v),
-                    &mut scratch.points,
-                );
-                sinks.drawn.light += samples as u64;
-                let lane = |a: &[f32], c: usize| Packet::new(a[c..c + 16].try_into().expect("16"));
-                for c in (0..samples as usize).step_by(16) {
-                    let left = samples as usize - c;
-                    let active = if left >= 16 {
-                        0xffff
-                    } else {
-                        (1u32 << left) - 1
-                    };
-                    let sl = quad_light(
-                        &s,
-                        &hl,
-                        quad,
-                        lane(&scratch.u, c),
-                        lane(&scratch.v, c),
-                        samples as f32,
-                        active,
-                    );
-                    push_shadow(
-                        &mut sinks.shadow[*index as usize],
-                        &sl,
-                        &paths,
-                        lane_weight,
-                        &mut sinks.rays,
-                    );
-                }
-            }
+            shade_quads(
+                shader,
+                &lanes.quads,
+                &h,
+                &mut stream,
+                sinks,
+                &mut scratch.light,
+            );
         }
         if spawns && !lane_children {
             let si = batch.interaction(k, material);
@@ -820,7 +787,7 @@ mod tests {
                 continue;
             };
             scenes += 1;
-            quad += lanes.quads.len();
+            quad += lanes.quads.lights.len();
             let shader = Shader::new(&scene, &opts, plan);
             let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
             let (w, h) = (48, 36);

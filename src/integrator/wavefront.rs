@@ -48,6 +48,7 @@ use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::shadow::{ShadowFilter, ShadowScratch};
 use super::tiles::{Tile, TileResult, render_tiles};
+use super::tiny_shadow::LaneOccluders;
 use crate::accel::{BatchScratch, Occluder, SceneAccel, SceneHit};
 use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
@@ -60,8 +61,11 @@ use std::time::Instant;
 /// summation order.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
     let pipeline = Pipeline::new(scene, opts);
-    let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment);
     let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
+    // In a tiny scene the quad lights' samples are settled where they are generated
+    // (`area_light`), not queued for the area-shadow stage.
+    let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment)
+        .map(|l| l.with_area_occluders(LaneOccluders::new(accel, filter.as_ref())));
     render_tiles(
         scene,
         opts,

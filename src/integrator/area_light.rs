@@ -1,0 +1,437 @@
+//! The quad lights of one shading point in lanes ([`shade_quads`]): the light samples
+//! are generated sixteen at a time (`simd::direct_light::quad_light`), and then either
+//! queued as shadow rays (the area-shadow stage of `wavefront::trace_shadows` tests
+//! them later, one ray and one contribution per sample), or, where the scene is a
+//! tiny one ([`LaneOccluders`]), tested in the same lanes right away and summed there:
+//! one radiance value per shading point and light reaches the camera sample, instead
+//! of `shadow` rays.
+//!
+//! Why: the samples of one shading point towards one quad light share their origin, a
+//! coherent packet by construction. Queued, each became a 52-byte `Ray` + slot +
+//! contribution written and read back (3.4 GB per frame of whitted_area64), dealt into
+//! shear-key bins, gathered again into lanes, tested, and added to the pixel one by
+//! one (perf, area64, 1 thread: `any_triangle` 23 %, `shade_group_lanes` 23 %,
+//! `trace_shadows` 9 %, `occluder_groups` and its closure 11 %, `extend_trusted` 6 %).
+//!
+//! Exactness: the fused path blocks exactly the rays the queue path blocks and
+//! multiplies in the same glass factors (see [`LaneOccluders`]); the ray counts and
+//! samples drawn are the same. The sum differs in order only: the queue path adds the
+//! unblocked contributions to the camera sample one at a time (after every other
+//! contribution the wave already added to it), the fused path adds them lane-wise
+//! (one lane accumulator per 16 samples) and then across lanes, and adds the total
+//! once. All terms are non-negative (radiance, reflectance and weights are), so each
+//! computed sum lies within `γ_N = N u / (1 - N u)` (u = 2^-24) of the exact sum of
+//! its `N` terms, and the two within `2 γ_N` of each other, relative. With the 64
+//! samples of whitted_area64 plus the rest of a camera sample's terms, that is about
+//! 1e-5 relative, an order below the 1e-4 of the wavefront-against-recursive image
+//! test (`tests/suite/wavefront.rs`).
+//!
+//! Measured (1 thread, AVX2, `--stats-json`, 5 runs interleaved with the queue-path
+//! binary on a machine loaded 8-11 on 2 cores, so only the ratio means anything, min /
+//! median / max ms): whitted_area64 render 17969/19625/21653 -> 14435/16357/18368
+//! (~1.2x); the ray counts are unchanged and the PNG differs in 8 of 2.36 M bytes by
+//! one. The fused path alone, before the plane and sphere culls, gave ~1.25x in a
+//! 3-run check (10906 -> 8760 median, load ~7); the culls did not separate from the
+//! noise in user-time checks at 512x384 (perf: `any_triangle` 29 % of the frame
+//! before them, gone after; what remains is `quad_light`'s arithmetic, the sphere
+//! lanes and the light points' draws, `fill_2d_split` ~10 %). Not done: a BVH scene
+//! (area_lights.toml) keeps the queue, unchanged (images identical).
+
+use super::hit_batch::HitBatch;
+use super::path_keys::{HitSet, hit_points_split};
+use super::sampling::PixelRng;
+use super::shade_stage::{LanePaths, Sinks, push_shadow};
+use super::shader::Shader;
+use super::sobol::SobolDim;
+use super::tiny_shadow::LaneOccluders;
+use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
+use crate::simd::lanes3::V3;
+use crate::simd::{Lanes, Packet};
+use glam::Vec3;
+
+/// The quad lights of a scene in lane form, and the tiny scene's occluders where the
+/// fused path applies.
+#[derive(Default)]
+pub(crate) struct QuadLights {
+    pub lights: Vec<(u32, QuadLight)>,
+    pub occluders: Option<LaneOccluders>,
+}
+
+impl QuadLights {
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
+    }
+}
+
+/// Scratch of the light points of one shading point.
+#[derive(Default)]
+pub(crate) struct LightPoints {
+    /// The pairs of a pattern drawn as pairs.
+    pub pairs: Vec<(f32, f32)>,
+    /// First and second coordinates, padded to whole lane groups.
+    pub u: Vec<f32>,
+    pub v: Vec<f32>,
+}
+
+/// One shading point of a lane-shaded material group.
+pub(crate) struct ShadingPoint<'a> {
+    pub batch: &'a HitBatch,
+    /// Its index in the batch.
+    pub k: usize,
+    pub albedo: Vec3,
+    pub hl: Highlight,
+    /// The camera sample, weight and time of its ray, and what keys its random numbers.
+    pub slot: u32,
+    pub weight: Vec3,
+    pub time: f32,
+    pub pixel: u64,
+    pub path: u64,
+    pub depth: u32,
+}
+
+/// The direct light of every quad light at the shading point `h`: `shadow` samples
+/// per light (the sample plan's), drawn into lanes from the point's stream (`stream`,
+/// created on first use, shared with the point's later draws); queued as shadow rays
+/// into `sinks.shadow`, or settled and summed into `sinks.acc` where
+/// `quads.occluders` is set (see the module).
+pub(crate) fn shade_quads(
+    shader: &Shader,
+    quads: &QuadLights,
+    h: &ShadingPoint,
+    stream: &mut Option<PixelRng>,
+    sinks: &mut Sinks,
+    points: &mut LightPoints,
+) {
+    let (batch, k) = (h.batch, h.k);
+    let splat = |a: &super::hit_batch::Soa3| V3::splat(a.get(k));
+    let s = SurfaceLanes {
+        p: splat(&batch.p),
+        p_error: splat(&batch.p_error),
+        ng: splat(&batch.ng),
+        ns: splat(&batch.ns),
+        base: splat(&batch.base),
+        smooth: Packet::splat(batch.smooth[k]),
+        wo: splat(&batch.dir).negated(),
+        albedo: V3::splat(h.albedo),
+    };
+    let plan = &shader.plan;
+    let samples = plan.shadow;
+    let paths = LanePaths::splat(h.slot, h.weight, h.time);
+    let lane_weight = V3::splat(h.weight);
+    let base = batch.base.get(k);
+    for (index, quad) in &quads.lights {
+        let mut near = quads.occluders.as_ref().map(|o| o.spheres_near(base, quad));
+        // The light points straight into lanes (`u`, `v` padded to 16).
+        hit_points_split(
+            plan.sampler,
+            HitSet {
+                seed: shader.seed,
+                pixel: h.pixel,
+                path: h.path,
+                depth: h.depth,
+                dim: SobolDim::Light(*index),
+            },
+            samples,
+            stream,
+            (&mut points.u, &mut points.v),
+            &mut points.pairs,
+        );
+        sinks.drawn.light += samples as u64;
+        let lane = |a: &[f32], c: usize| Packet::new(a[c..c + 16].try_into().expect("16"));
+        let mut sum = V3::splat(Vec3::ZERO);
+        let mut any = false;
+        for c in (0..samples as usize).step_by(16) {
+            let left = samples as usize - c;
+            let active = if left >= 16 {
+                0xffff
+            } else {
+                (1u32 << left) - 1
+            };
+            let sl = quad_light(
+                &s,
+                &h.hl,
+                quad,
+                lane(&points.u, c),
+                lane(&points.v, c),
+                samples as f32,
+                active,
+            );
+            let Some(occluders) = &quads.occluders else {
+                push_shadow(
+                    &mut sinks.shadow[*index as usize],
+                    &sl,
+                    &paths,
+                    lane_weight,
+                    &mut sinks.rays,
+                );
+                continue;
+            };
+            let live = sl.mask & 0xffff;
+            if live == 0 {
+                continue;
+            }
+            sinks.rays.shadow += live.count_ones() as u64;
+            let near = near.as_mut().expect("with the occluders");
+            let settled = occluders.settle(sl.origin, sl.dir, sl.tmax, live, near);
+            sinks.rays.transmitted_shadow += settled.settled.count_ones() as u64;
+            if settled.pass == 0 {
+                continue;
+            }
+            any = true;
+            // The queue path's `contribution * weight`, then `* transmittance`.
+            let c = sl.contribution.times(lane_weight).times(settled.factor);
+            let pass = <Packet as Lanes>::mask_from_bits(settled.pass);
+            sum = sum.plus(V3::select(pass, c, V3::splat(Vec3::ZERO)));
+        }
+        if any {
+            let total = Vec3::new(sum.x.reduce_add(), sum.y.reduce_add(), sum.z.reduce_add());
+            sinks.acc[h.slot as usize] += total;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{AccelKind, BatchScratch, SceneAccel, TinyScratch};
+    use crate::geometry::gamma;
+    use crate::integrator::RenderOptions;
+    use crate::integrator::camera_rays::SamplePlan;
+    use crate::integrator::queues::{PerChildKind, RayQueue, ShadowQueue};
+    use crate::integrator::shade_stage::{LaneShading, ShadeScratch, shade_queue};
+    use crate::integrator::shader::{ChildKind, Emitted};
+    use crate::integrator::shadow::ShadowFilter;
+    use crate::scene::{Camera, Light, Material, Scene, SceneBuilder};
+    use crate::stats::{EffectSamplesDrawn, RayCounts};
+
+    /// A tiny scene (a floor quad, a mirror and a glass sphere: four primitives, the
+    /// Whitted rows' kind) under a wide quad light whose samples, seen from the far
+    /// ends of the floor, straddle the diagonals between dominant axes (mixed shear
+    /// keys within one lane group), and a point light.
+    fn scene() -> Scene {
+        let mut b = SceneBuilder::new();
+        let floor = b.add_material(Material {
+            specular: Vec3::splat(0.3),
+            shininess: 40.0,
+            ..Material::diffuse("floor", Vec3::new(0.8, 0.6, 0.4))
+        });
+        let chrome = b.add_material(Material {
+            diffuse: Vec3::splat(0.1),
+            specular: Vec3::splat(0.6),
+            shininess: 200.0,
+            ..Material::mirror("chrome", Vec3::splat(0.8))
+        });
+        let glass = b.add_material(Material {
+            transmission: Vec3::new(0.9, 0.7, 0.5),
+            ..Material::glass("glass", 1.5)
+        });
+        b.add_quad(
+            Vec3::new(-12.0, 0.0, -12.0),
+            Vec3::new(0.0, 0.0, 24.0),
+            Vec3::new(24.0, 0.0, 0.0),
+            floor,
+        );
+        b.add_sphere(Vec3::new(1.1, 1.3, -1.4), 1.3, chrome);
+        b.add_sphere(Vec3::new(-0.9, 1.0, 1.0), 1.0, glass);
+        b.add_light(Light::Quad {
+            corner: Vec3::new(-3.0, 4.0, -2.0),
+            edge1: Vec3::new(6.0, 0.0, 0.0),
+            edge2: Vec3::new(0.0, 0.0, 4.0),
+            radiance: Vec3::splat(6.0),
+        });
+        b.add_light(Light::Point {
+            position: Vec3::new(-5.0, 9.0, 7.0),
+            intensity: Vec3::splat(60.0),
+        });
+        b.camera = Some(Camera {
+            eye: Vec3::new(0.0, 3.0, 9.0),
+            target: Vec3::new(0.0, 0.5, 0.0),
+            up: Vec3::Y,
+            vfov_deg: 75.0,
+        });
+        b.finish().expect("the test scene")
+    }
+
+    fn sinks(scene: &Scene, slots: usize) -> Sinks {
+        Sinks {
+            acc: vec![Vec3::ZERO; slots],
+            slot_pixel: (0..slots as u64).collect(),
+            next: PerChildKind::default(),
+            shadow: (0..scene.lights.len())
+                .map(|_| ShadowQueue::default())
+                .collect(),
+            area: scene.lights.iter().map(Light::is_area).collect(),
+            emitted: Emitted::default(),
+            rays: RayCounts::default(),
+            drawn: EffectSamplesDrawn::default(),
+        }
+    }
+
+    /// The queue path's shadow stage (`wavefront::trace_shadows` for a tiny scene):
+    /// every queued ray settled by the tiny pass or the plain occlusion batch, and its
+    /// contribution times its transmittance added to its camera sample, in queue order.
+    /// Counts the terms each camera sample receives into `terms`; returns the number
+    /// of rays of the quad light (light 0) blocked outright.
+    fn trace_queues(
+        accel: &SceneAccel,
+        filter: Option<&ShadowFilter>,
+        sinks: &mut Sinks,
+        terms: &mut [u32],
+    ) -> usize {
+        let mut dark = 0;
+        let (mut tiny, mut batch) = (TinyScratch::default(), BatchScratch::default());
+        for (light, q) in sinks.shadow.iter_mut().enumerate() {
+            let mut t = Vec::new();
+            if let Some(pass) = filter.and_then(|f| f.tiny_pass(accel)) {
+                pass.transmittance_batch(&q.rays, &mut t, &mut tiny, &mut sinks.rays);
+            } else {
+                let mut blocked = vec![false; q.rays.len()];
+                accel.any_hit_batch(&q.rays, &mut blocked, &mut batch);
+                t = blocked
+                    .iter()
+                    .map(|&b| if b { Vec3::ZERO } else { Vec3::ONE })
+                    .collect();
+            }
+            for ((&t, &slot), &c) in t.iter().zip(&q.slot).zip(&q.contribution) {
+                terms[slot as usize] += 1;
+                if t != Vec3::ZERO {
+                    sinks.acc[slot as usize] += c * t;
+                }
+            }
+            if light == 0 {
+                dark += t.iter().filter(|&&t| t == Vec3::ZERO).count();
+            }
+            q.clear();
+        }
+        dark
+    }
+
+    fn bits(v: &Vec3) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// Every field of a child queue, bit for bit.
+    type QueueBits = (
+        Vec<[u32; 9]>,
+        Vec<u32>,
+        Vec<[u32; 3]>,
+        Vec<[u32; 3]>,
+        Vec<u64>,
+    );
+
+    fn queue_bits(q: &Option<RayQueue>) -> Option<QueueBits> {
+        q.as_ref().map(|q| {
+            let ray = |r: &crate::geometry::Ray| {
+                let [a, b, c] = bits(&r.origin);
+                let [d, e, f] = bits(&r.dir);
+                let rest = [r.tmin, r.tmax, r.time].map(f32::to_bits);
+                [a, b, c, d, e, f, rest[0], rest[1], rest[2]]
+            };
+            (
+                q.rays.iter().map(ray).collect(),
+                q.slot.clone(),
+                q.weight.iter().map(bits).collect(),
+                q.throughput.iter().map(bits).collect(),
+                q.path.clone(),
+            )
+        })
+    }
+
+    /// The fused path (samples settled and summed in lanes) against the queue path
+    /// (queued, settled by the tiny scene's batch, added one by one) on the same hits:
+    /// camera rays and two waves of their children, with transmitted shadows through
+    /// the glass sphere on (the `TinyShadow` glass pass) and off (the plain occlusion
+    /// batch), 64 samples (whole lane groups) and 20 (a partial one). The ray counts
+    /// (shadow rays, rays settled through glass), the samples drawn, the child rays and
+    /// the point light's queue are the same bit for bit; each camera sample's radiance
+    /// is within `2 γ_N` relative of the queue path's, `N` the number of terms it
+    /// summed (see the module: both sums of non-negative terms are within `γ_N` of the
+    /// exact one).
+    #[test]
+    fn fused_quad_light_sums_match_the_queue_path_on_real_hits() {
+        let scene = scene();
+        let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+        assert!(accel.tiny.is_some(), "the test scene is a tiny one");
+        let (mut shadow_rays, mut settled, mut differ, mut slots_compared) = (0, 0, 0, 0);
+        let mut blocked = 0;
+        for (through_glass, samples) in [(true, 64), (true, 20), (false, 64)] {
+            let name = format!("transmitted shadows {through_glass}, {samples} samples");
+            let mut opts = RenderOptions::from_scene(&scene);
+            opts.samples.shadow = samples;
+            opts.transmitted_shadows = through_glass;
+            let plan = SamplePlan::new(&scene, &opts);
+            let shader = Shader::new(&scene, &opts, plan);
+            let filter = ShadowFilter::new(&scene, through_glass, accel.kind);
+            assert_eq!(filter.is_some(), through_glass, "{name}");
+            let occluders = LaneOccluders::new(&accel, filter.as_ref());
+            assert!(occluders.is_some(), "{name}: the fused path applies");
+            let queued = LaneShading::new(&scene, plan.environment).expect("lane path");
+            let fused = LaneShading::new(&scene, plan.environment)
+                .expect("lane path")
+                .with_area_occluders(occluders);
+            let (w, h) = (64, 48);
+            let frame = scene.camera.frame(w, h);
+            let mut queue = RayQueue::default();
+            for i in 0..w * h {
+                let ray = frame.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                queue.push(ray, i, Vec3::ONE, Vec3::ONE, plan.first_path());
+            }
+            let slots = (w * h) as usize;
+            let mut scratch = ShadeScratch::default();
+            let mut queues = vec![(queue, 0)];
+            while let Some((queue, depth)) = queues.pop() {
+                let hits: Vec<_> = queue.rays.iter().map(|r| accel.closest_hit(r)).collect();
+                let (mut a, mut b) = (sinks(&scene, slots), sinks(&scene, slots));
+                let f = Some(&fused);
+                shade_queue(&shader, f, &queue, &hits, depth, &mut a, &mut scratch);
+                assert!(a.shadow[0].rays.is_empty(), "{name}: nothing queued");
+                let q = Some(&queued);
+                shade_queue(&shader, q, &queue, &hits, depth, &mut b, &mut scratch);
+                let mut terms = vec![1u32; slots];
+                let mut ignored = vec![1u32; slots];
+                trace_queues(&accel, filter.as_ref(), &mut a, &mut ignored);
+                let quad_rays = b.shadow[0].rays.len();
+                blocked += trace_queues(&accel, filter.as_ref(), &mut b, &mut terms);
+                assert_eq!(a.rays, b.rays, "{name} depth {depth}: ray counts");
+                assert_eq!(a.drawn, b.drawn, "{name} depth {depth}: samples drawn");
+                shadow_rays += quad_rays;
+                settled += a.rays.transmitted_shadow;
+                for (slot, (x, y)) in a.acc.iter().zip(&b.acc).enumerate() {
+                    let n = terms[slot];
+                    let tol = 2.0 * gamma(n) * x.abs().max(y.abs());
+                    for c in 0..3 {
+                        assert!(
+                            (x[c] - y[c]).abs() <= tol[c],
+                            "{name} depth {depth} sample {slot}: fused {x} queued {y} ({n} terms)"
+                        );
+                    }
+                    differ += (bits(x) != bits(y)) as usize;
+                    slots_compared += 1;
+                }
+                for (light, (qa, qb)) in a.shadow.iter().zip(&b.shadow).enumerate() {
+                    assert!(qa.rays.is_empty() && qb.rays.is_empty(), "light {light}");
+                }
+                for kind in ChildKind::ALL {
+                    let qa = &mut a.next[kind];
+                    assert!(
+                        queue_bits(qa) == queue_bits(&b.next[kind]),
+                        "{name} depth {depth}: {kind:?} children"
+                    );
+                    if depth < 2
+                        && let Some(q) = qa.take()
+                        && !q.rays.is_empty()
+                    {
+                        queues.push((q, depth + 1));
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "fused quad lights: {shadow_rays} samples, {settled} settled through glass, \
+             {blocked} blocked, {differ} of {slots_compared} camera-sample sums not bit-equal"
+        );
+        assert!(shadow_rays > 100_000, "{shadow_rays} samples compared");
+        assert!(settled > 1_000, "{settled} samples through glass");
+        assert!(blocked > 5_000, "{blocked} samples blocked");
+    }
+}
