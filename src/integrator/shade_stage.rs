@@ -27,12 +27,12 @@ use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::tiny_shadow::LaneOccluders;
 use crate::accel::SceneHit;
-use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::simd::Packet;
 use crate::simd::direct_light::{
     Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light, point_light,
 };
+use crate::simd::lane_rays::lane_rays;
 use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
 use crate::simd::specular;
 use crate::stats::{EffectSamplesDrawn, RayCounts};
@@ -260,7 +260,8 @@ impl LanePaths {
 ///
 /// Measured (perf, whitted_aa3x3, 1 thread): building each ray from the lane arrays at
 /// an index taken from the mask (a bounds check per field) and extending three arrays
-/// hit by hit was about a fifth of `shade_group_lanes`.
+/// hit by hit was about a fifth of `shade_group_lanes`. The rays come out of their
+/// lanes by a transpose ([`lane_rays`]; see there for its measurement).
 pub(super) fn push_shadow(
     q: &mut ShadowQueue,
     s: &ShadowLanes,
@@ -273,21 +274,13 @@ pub(super) fn push_shadow(
         return;
     }
     let arr = |v: &V3| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
-    let o = arr(&s.origin);
-    let d = arr(&s.dir);
+    let lane_rays = lane_rays(&s.origin, &s.dir, s.tmax, &paths.time);
     let c = arr(&s.contribution.times(weight));
-    let tmax = s.tmax.to_array();
-    let ray = |i: usize| Ray {
-        origin: Vec3::new(o[0][i], o[1][i], o[2][i]),
-        dir: Vec3::new(d[0][i], d[1][i], d[2][i]),
-        tmin: 0.0,
-        tmax: tmax[i],
-        time: paths.time[i],
-    };
+    let ray = |i: usize| lane_rays[i & 15];
     let contribution = |i: usize| Vec3::new(c[0][i], c[1][i], c[2][i]);
     if mask == 0xffff {
         rays.shadow += 16;
-        q.rays.extend((0..16).map(ray));
+        q.rays.extend_from_slice(&lane_rays);
         q.slot.extend_from_slice(&paths.slot);
         q.contribution.extend((0..16).map(contribution));
         return;
@@ -338,6 +331,8 @@ fn shade_group_lanes(
     // light samples (the order of its random stream).
     let spawns = spawns && depth < shader.max_depth;
     let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
+    // The quad-light loop below reads each hit's albedo; nothing else does.
+    let keep_albedo = lit && !lanes.quads.is_empty();
     let mut children = ChildPaths {
         throughput: [Vec3::ZERO; 16],
         path: [0; 16],
@@ -383,29 +378,37 @@ fn shade_group_lanes(
             }
         }
         // The camera sample, weight and time of each hit's ray, gathered once for the
-        // shadow rays of every light.
+        // shadow rays of every light and the local radiance.
         let mut paths = LanePaths::default();
-        // The albedo lanes stored once (`V3::lane` stored all three vectors per hit).
-        let [ax, ay, az] = [s.albedo.x, s.albedo.y, s.albedo.z].map(|p| p.to_array());
         for (i, &q) in batch.ray[j..j + n].iter().enumerate() {
             let q = q as usize;
-            let (slot, weight) = (queue.slot[q], queue.weight[q]);
-            paths.set(i, slot, weight, queue.rays[q].time);
+            paths.set(i, queue.slot[q], queue.weight[q], queue.rays[q].time);
             if lane_children {
                 children.throughput[i] = queue.throughput[q];
                 children.path[i] = queue.path[q];
             }
-            let a = Vec3::new(ax[i], ay[i], az[i]);
-            albedo.push(a);
-            let local = if lit {
-                m.emission + scene.ambient * a
-            } else {
-                m.emission
-            };
-            sinks.acc[slot as usize] += weight * local;
+        }
+        if keep_albedo {
+            // The albedo lanes stored once (`V3::lane` stored all three vectors per hit).
+            let [ax, ay, az] = [s.albedo.x, s.albedo.y, s.albedo.z].map(|p| p.to_array());
+            albedo.extend((0..n).map(|i| Vec3::new(ax[i], ay[i], az[i])));
+        }
+        let weight = paths.weight();
+        // `weight * (emission + ambient * albedo)` in lanes, the scalar shader's f32
+        // operations, then added to each hit's camera sample in hit order.
+        let local = if lit {
+            V3::splat(m.emission).plus(V3::splat(scene.ambient).times(s.albedo))
+        } else {
+            V3::splat(m.emission)
+        };
+        let [lx, ly, lz] = {
+            let l = weight.times(local);
+            [l.x, l.y, l.z].map(|p| p.to_array())
+        };
+        for (i, &slot) in paths.slot[..n].iter().enumerate() {
+            sinks.acc[slot as usize] += Vec3::new(lx[i], ly[i], lz[i]);
         }
         if lit {
-            let weight = paths.weight();
             for &(index, position, intensity) in &lanes.points {
                 let sl = point_light(&s, &hl, position, intensity, active);
                 let q = &mut sinks.shadow[index as usize];
@@ -515,14 +518,14 @@ impl Children {
     }
 
     /// The entries into the queue `q` (created on the first entry, as the scalar
-    /// `push_children` does), leaving from `origin` along `dir` (lane arrays).
+    /// `push_children` does), leaving from `origin` along `dir` (lanes).
     fn flush(
         &self,
         q: &mut Option<RayQueue>,
         paths: &LanePaths,
         children: &ChildPaths,
-        origin: &[[f32; 16]; 3],
-        dir: &[[f32; 16]; 3],
+        origin: &V3,
+        dir: &V3,
     ) {
         let n = self.n.min(32);
         if n == 0 {
@@ -530,14 +533,8 @@ impl Children {
         }
         let q = q.get_or_insert_with(RayQueue::default);
         let lanes = &self.lane[..n];
-        let at = |a: &[[f32; 16]; 3], i: usize| Vec3::new(a[0][i], a[1][i], a[2][i]);
-        q.rays.extend(lanes.iter().map(|&i| Ray {
-            origin: at(origin, i),
-            dir: at(dir, i),
-            tmin: 0.0,
-            tmax: f32::INFINITY,
-            time: paths.time[i],
-        }));
+        let rays = lane_rays(origin, dir, Packet::splat(f32::INFINITY), &paths.time);
+        q.rays.extend(lanes.iter().map(|&i| rays[i & 15]));
         q.slot.extend(lanes.iter().map(|&i| paths.slot[i]));
         let weight = |i: usize| {
             let w = &paths.weight;
@@ -589,18 +586,17 @@ fn specular_children(
     let mirror = m.mirror != Vec3::ZERO;
     let transmissive = m.is_transmissive();
     let min = shader.min_contribution;
-    let arr = |v: &V3| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
     let (p, p_error, ng, ns) = (s.p, s.p_error, s.ng, s.ns);
     // Every reflected direction leaves on the facing side: one origin for them all.
-    let out = arr(&lane_offset(p, p_error, ng, ng));
-    let reflected = arr(&specular::reflection_dir(d, ns, ng));
+    let out = lane_offset(p, p_error, ng, ng);
+    let reflected = specular::reflection_dir(d, ns, ng);
     let glass = transmissive.then(|| {
         let g = specular::glass(d, ns, ng, front, m.ior);
         // Refraction leaves into the far side: offset against the facing normal.
-        let inside = arr(&lane_offset(p, p_error, ng, ng.negated()));
+        let inside = lane_offset(p, p_error, ng, ng.negated());
         (
             g.reflectance.to_array(),
-            arr(&g.refracted),
+            g.refracted,
             g.tir.to_bitmask(),
             inside,
         )
@@ -646,6 +642,7 @@ fn specular_children(
 mod tests {
     use super::*;
     use crate::accel::{AccelKind, SceneAccel};
+    use crate::geometry::Ray;
     use crate::integrator::RenderOptions;
     use crate::integrator::camera_rays::SamplePlan;
     use crate::scene::load::load_scene;

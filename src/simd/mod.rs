@@ -16,6 +16,7 @@ pub mod direct_light;
 pub mod exact_sums;
 pub mod glass_shadow;
 pub mod kernels;
+pub mod lane_rays;
 mod lanes;
 pub mod lanes3;
 pub mod left_pack;
