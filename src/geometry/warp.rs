@@ -31,9 +31,13 @@ pub fn concentric_disk(u: f32, v: f32) -> Vec2 {
 /// a regular polygon with `blades` corners, the first at angle `rotation` (radians).
 /// The polygon is cut into `blades` triangles around the centre; `u` picks the
 /// triangle (all have equal area) and is reused, rescaled, inside it.
+///
+/// The disk is [`crate::simd::aperture::concentric_disk_one`]: the concentric map with a
+/// polynomial sine and cosine, the bits the lane-parallel camera computes for a whole
+/// packet of lens points (within `SIN_COS_MAX_ERROR` of [`concentric_disk`]'s libm).
 pub fn sample_aperture(u: f32, v: f32, blades: u32, rotation: f32) -> Vec2 {
     if blades < 3 {
-        return concentric_disk(u, v);
+        return crate::simd::aperture::concentric_disk_one(u, v);
     }
     let x = u * blades as f32;
     let k = (x as u32).min(blades - 1);

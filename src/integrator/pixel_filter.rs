@@ -88,13 +88,45 @@ pub(crate) fn resolve_pixels(
         }
         return;
     }
+    if rays == 1 && plan.filter == super::FilterKind::Box {
+        // Weight 1: `single_value` reduces to this (`+ 0` as `one_sample_value`).
+        for (&r, &a) in radiance.iter().zip(at) {
+            out.values[a as usize] = if r.is_finite() {
+                r + Vec3::ZERO
+            } else {
+                *nonfinite += 1;
+                Vec3::ZERO
+            };
+        }
+        return;
+    }
     if rays == 1 {
         for ((&offset, &r), &a) in offsets.iter().zip(radiance).zip(at) {
             out.values[a as usize] = single_value(plan, offset, r, nonfinite);
         }
         return;
     }
+    if eye == 1 {
+        // One eye sample of several rays (lens or shutter samples): its mean is the
+        // one sample of the pixel, so no sums.
+        for ((&offset, r), &a) in offsets.iter().zip(radiance.chunks_exact(rays)).zip(at) {
+            let mean = eye_mean(r, nonfinite);
+            out.values[a as usize] = single_value(plan, offset, mean, nonfinite);
+        }
+        return;
+    }
+    let box_filter = plan.filter == super::FilterKind::Box;
     for (g, &a) in at.iter().enumerate() {
+        let pixel = &radiance[g * rays..(g + 1) * rays];
+        if box_filter && rays == eye {
+            // Box filter, one ray per eye sample: three exact f64 sums when they
+            // are exact (the same bits), else the general sums below.
+            if let Some((value, dropped)) = PixelSums::box_mean_value(pixel) {
+                *nonfinite += dropped;
+                out.values[a as usize] = value;
+                continue;
+            }
+        }
         let mut s = PixelSums::default();
         resolve_pixel_into(
             plan,
@@ -152,6 +184,25 @@ fn add_single(
     sums.add_sample(w, r);
 }
 
+/// The mean radiance of one eye sample's rays, in ray order, non-finite ones counted
+/// in `nonfinite` and taken as black (no division for one ray).
+#[inline(always)]
+fn eye_mean(radiance: &[Vec3], nonfinite: &mut u64) -> Vec3 {
+    let mut radiance_sum = Vec3::ZERO;
+    for &r in radiance {
+        if r.is_finite() {
+            radiance_sum += r;
+        } else {
+            *nonfinite += 1;
+        }
+    }
+    if radiance.len() == 1 {
+        radiance_sum
+    } else {
+        radiance_sum / radiance.len() as f32
+    }
+}
+
 /// Each eye sample's mean over its rays, weighted by the filter, into `sums`.
 fn add_means(
     plan: &SamplePlan,
@@ -162,19 +213,7 @@ fn add_means(
 ) {
     let per_eye = per_eye(plan);
     for (e, &(ox, oy)) in offsets.iter().enumerate() {
-        let mut radiance_sum = Vec3::ZERO;
-        for &r in &radiance[e * per_eye..(e + 1) * per_eye] {
-            if r.is_finite() {
-                radiance_sum += r;
-            } else {
-                *nonfinite += 1;
-            }
-        }
-        let radiance = if per_eye == 1 {
-            radiance_sum
-        } else {
-            radiance_sum / per_eye as f32
-        };
+        let radiance = eye_mean(&radiance[e * per_eye..(e + 1) * per_eye], nonfinite);
         let w = plan.filter.weight(ox - 0.5, oy - 0.5);
         if !(w * radiance).is_finite() {
             *nonfinite += 1;
@@ -190,10 +229,10 @@ mod tests {
     use crate::integrator::sampling::PixelRng;
     use crate::integrator::{FilterKind, SamplerKind};
 
-    fn plan(filter: FilterKind, eye: u32) -> SamplePlan {
+    fn plan(filter: FilterKind, eye: u32, lens: u32) -> SamplePlan {
         SamplePlan {
             eye,
-            lens: 0,
+            lens,
             time: 0,
             shadow: 1,
             glossy: 1,
@@ -205,11 +244,12 @@ mod tests {
         }
     }
 
-    /// With one ray per eye sample, the flat paths (`resolve_pixel_into`'s, and
-    /// `resolve_pixels`' with kept sums and without, whose 1-ray shortcut builds no
-    /// sums) give exactly the sums (compared exactly), the values (bit for bit) and
-    /// the non-finite count of the general mean loop, on radiance with NaN,
-    /// infinities, signed zeros, tiny and huge components, for both filters.
+    /// The shortcuts (`resolve_pixel_into`'s one ray per eye sample, and
+    /// `resolve_pixels`' with kept sums and without: its 1-ray, 1-eye-sample and
+    /// box-filter paths build no sums) give exactly the sums (compared exactly), the
+    /// values (bit for bit) and the non-finite count of the general mean loop, on
+    /// radiance with NaN, infinities, signed zeros, tiny and huge components, for both
+    /// filters, 1 to 9 eye samples and 1 to 4 rays per eye sample.
     #[test]
     fn single_ray_paths_equal_the_mean_loop() {
         let mut rng = PixelRng::new(11, 4);
@@ -228,13 +268,14 @@ mod tests {
         };
         let (mut nonfinite_seen, mut pixels_seen) = (0, 0);
         for filter in [FilterKind::Box, FilterKind::Gaussian] {
-            for eye in [1, 3] {
-                let plan = plan(filter, eye);
+            for (eye, lens) in [(1, 0), (3, 0), (9, 0), (1, 4), (2, 3)] {
+                let plan = plan(filter, eye, lens);
+                let per = lens.max(1) as usize;
                 let n = 300;
                 let offsets: Vec<(f32, f32)> = (0..n * eye)
                     .map(|_| (2.0 * rng.next_f32() - 0.5, 2.0 * rng.next_f32() - 0.5))
                     .collect();
-                let radiance: Vec<Vec3> = (0..n * eye)
+                let radiance: Vec<Vec3> = (0..n as usize * eye as usize * per)
                     .map(|_| Vec3::new(value(&mut rng), value(&mut rng), value(&mut rng)))
                     .collect();
                 let e = eye as usize;
@@ -242,7 +283,8 @@ mod tests {
                 let mut got = want.clone();
                 let (mut want_nf, mut got_nf) = (0, 0);
                 for (g, sums) in want.iter_mut().enumerate() {
-                    let (o, r) = (&offsets[g * e..(g + 1) * e], &radiance[g * e..(g + 1) * e]);
+                    let o = &offsets[g * e..(g + 1) * e];
+                    let r = &radiance[g * e * per..(g + 1) * e * per];
                     add_means(&plan, o, r, &mut want_nf, sums);
                 }
                 // Pixels stored in reverse order, as a tile's blocks scatter them;
@@ -281,7 +323,7 @@ mod tests {
             }
         }
         assert!(
-            nonfinite_seen > 100 && pixels_seen == 1200,
+            nonfinite_seen > 100 && pixels_seen == 3000,
             "{nonfinite_seen}"
         );
     }

@@ -341,6 +341,18 @@ pub fn decorrelate<T>(kind: SamplerKind, set: &mut [T], rng: &mut PixelRng) {
     }
 }
 
+/// [`decorrelate`] of a set of pairs held as two arrays: the same draws and the same
+/// swaps, applied to both.
+pub fn decorrelate_pairs(kind: SamplerKind, u: &mut [f32], v: &mut [f32], rng: &mut PixelRng) {
+    if matches!(kind, SamplerKind::Grid | SamplerKind::Jittered) {
+        for i in (1..u.len().min(v.len()) as u32).rev() {
+            let j = rng.below(i + 1);
+            u.swap(i as usize, j as usize);
+            v.swap(i as usize, j as usize);
+        }
+    }
+}
+
 fn shuffle<T>(set: &mut [T], rng: &mut PixelRng) {
     // Fisher-Yates.
     for i in (1..set.len() as u32).rev() {

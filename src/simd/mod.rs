@@ -9,6 +9,7 @@
 //! Masks are lane vectors whose lanes are all-ones or all-zeros, as `wide` returns
 //! from comparisons; [`Lanes::bitmask`] turns one into an integer with bit `i` for lane `i`.
 
+pub mod aperture;
 pub mod bin_box;
 pub mod camera;
 pub mod compact;
@@ -27,5 +28,6 @@ pub mod ray_store;
 pub mod specular;
 pub mod surface;
 pub mod tiny;
+pub mod trig;
 
 pub use lanes::{F4, F8, F16, Lanes, PACKET_WIDTH, Packet, instruction_set};
