@@ -371,11 +371,7 @@ mod tests {
                 .with_area_occluders(occluders);
             let (w, h) = (64, 48);
             let frame = scene.camera.frame(w, h);
-            let mut queue = RayQueue::default();
-            for i in 0..w * h {
-                let ray = frame.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                queue.push(ray, i, Vec3::ONE, Vec3::ONE, plan.first_path());
-            }
+            let queue = RayQueue::pixel_centres(&frame, w, h, plan.first_path());
             let slots = (w * h) as usize;
             let mut scratch = ShadeScratch::default();
             let mut queues = vec![(queue, 0)];

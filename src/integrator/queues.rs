@@ -150,6 +150,25 @@ impl<T> IndexMut<ChildKind> for PerChildKind<T> {
     }
 }
 
+/// Test helper: one camera ray through the centre of each pixel of a `w x h` frame,
+/// pixel `i` (row-major) in slot `i`, unit weight and throughput, all on path `path`.
+#[cfg(test)]
+impl RayQueue {
+    pub(crate) fn pixel_centres(
+        frame: &crate::scene::CameraFrame,
+        w: u32,
+        h: u32,
+        path: u64,
+    ) -> RayQueue {
+        let mut queue = RayQueue::default();
+        for i in 0..w * h {
+            let ray = frame.ray((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            queue.push(ray, i, Vec3::ONE, Vec3::ONE, path);
+        }
+        queue
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
