@@ -14,7 +14,7 @@ pub mod warp;
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
 pub use offset::{SPAWN_TO_ERROR, offset_ray_origin, orthonormal_basis, spawn_ray_to};
 pub use plane::{intersect_plane, plane_point};
-pub use ray::{LaneRays, Ray, RayPacket, RayQuery, dominant_axis};
+pub use ray::{LaneRays, Ray, RayPacket, RayQuery, dominant_axis, octant};
 pub use sphere::{intersect_sphere, sphere_point};
 pub(crate) use triangle::err as triangle_err;
 pub use triangle::{PrimHit, gamma, intersect_triangle, intersect_triangle_f64, triangle_point};

@@ -253,6 +253,16 @@ impl RayQuery {
     }
 }
 
+/// The direction octant of `d`: bit `a` set where component `a` has its sign bit set
+/// (-0.0 counts as negative, as the slab test's near/far choice does). Stream binning
+/// and packet grouping key rays by it.
+#[inline]
+pub fn octant(d: Vec3) -> usize {
+    (d.x.is_sign_negative() as usize)
+        | (d.y.is_sign_negative() as usize) << 1
+        | (d.z.is_sign_negative() as usize) << 2
+}
+
 /// The axis along which `d` is largest in magnitude (ties to the lower axis): the
 /// watertight test's `kz`. Packet setup groups lanes by it, and the stream kernel's
 /// coherence test (`bvhn::prefers_stream`) predicts that grouping with it.

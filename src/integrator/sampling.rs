@@ -345,19 +345,23 @@ pub fn decorrelate<T>(kind: SamplerKind, set: &mut [T], rng: &mut PixelRng) {
 /// swaps, applied to both.
 pub fn decorrelate_pairs(kind: SamplerKind, u: &mut [f32], v: &mut [f32], rng: &mut PixelRng) {
     if matches!(kind, SamplerKind::Grid | SamplerKind::Jittered) {
-        for i in (1..u.len().min(v.len()) as u32).rev() {
-            let j = rng.below(i + 1);
-            u.swap(i as usize, j as usize);
-            v.swap(i as usize, j as usize);
-        }
+        shuffle_by(u.len().min(v.len()), rng, |i, j| {
+            u.swap(i, j);
+            v.swap(i, j);
+        });
     }
 }
 
 fn shuffle<T>(set: &mut [T], rng: &mut PixelRng) {
-    // Fisher-Yates.
-    for i in (1..set.len() as u32).rev() {
+    shuffle_by(set.len(), rng, |i, j| set.swap(i, j));
+}
+
+/// Fisher-Yates over `n` items, each swap applied by `swap(i, j)`: one sequence of
+/// draws for a set however it is stored.
+fn shuffle_by(n: usize, rng: &mut PixelRng, mut swap: impl FnMut(usize, usize)) {
+    for i in (1..n as u32).rev() {
         let j = rng.below(i + 1);
-        set.swap(i as usize, j as usize);
+        swap(i as usize, j as usize);
     }
 }
 

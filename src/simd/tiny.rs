@@ -33,6 +33,22 @@ pub fn shear_key(r: &Ray) -> Option<usize> {
     Some(kz * 2 + (r.dir[kz] < 0.0) as usize)
 }
 
+/// The bits of the lanes of `lanes` (interval ends `tmax`) that hold a valid ray
+/// (`Ray::is_valid` in lanes: finite origin and direction, a non-zero direction, an
+/// interval with no NaN and `tmin <= tmax`): what [`uniform_shear_key`] and
+/// [`lane_shear_keys`] both start from.
+#[inline(always)]
+fn valid_lanes(lanes: &RayLanes<TinyLanes>, tmax: TinyLanes) -> u32 {
+    let [ox, oy, oz] = lanes.o;
+    let [dx, dy, dz] = lanes.d;
+    let finite = ox.is_finite() & oy.is_finite() & oz.is_finite();
+    let finite = finite & dx.is_finite() & dy.is_finite() & dz.is_finite();
+    let zero = TinyLanes::splat(0.0);
+    let null = dx.simd_eq(zero) & dy.simd_eq(zero) & dz.simd_eq(zero);
+    // `simd_le` is false for a NaN on either side, as `!is_nan && tmin <= tmax`.
+    (finite & lanes.tmin.simd_le(tmax)).to_bitmask() & !null.to_bitmask()
+}
+
 /// The [`shear_key`] shared by all [`TINY_WIDTH`] rays in `lanes` (interval ends
 /// `tmax`), or `None` when a ray is invalid (`Ray::is_valid` in lanes: finite origin
 /// and direction, a non-zero direction, an interval with no NaN and `tmin <= tmax`)
@@ -40,15 +56,9 @@ pub fn shear_key(r: &Ray) -> Option<usize> {
 /// else y where |y| >= |z|, else z.
 #[inline(always)]
 pub fn uniform_shear_key(lanes: &RayLanes<TinyLanes>, tmax: TinyLanes) -> Option<usize> {
-    let [ox, oy, oz] = lanes.o;
     let [dx, dy, dz] = lanes.d;
-    let finite = ox.is_finite() & oy.is_finite() & oz.is_finite();
-    let finite = finite & dx.is_finite() & dy.is_finite() & dz.is_finite();
-    let zero = TinyLanes::splat(0.0);
-    let null = dx.simd_eq(zero) & dy.simd_eq(zero) & dz.simd_eq(zero);
-    let interval = lanes.tmin.simd_le(tmax);
     let all = (1u32 << TINY_WIDTH) - 1;
-    if (finite & interval).to_bitmask() != all || null.to_bitmask() != 0 {
+    if valid_lanes(lanes, tmax) != all {
         return None;
     }
     let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
@@ -79,14 +89,9 @@ pub fn uniform_shear_key(lanes: &RayLanes<TinyLanes>, tmax: TinyLanes) -> Option
 /// axis diagonal); a caller tests each non-empty mask as one group.
 #[inline(always)]
 pub fn lane_shear_keys(lanes: &RayLanes<TinyLanes>, tmax: TinyLanes) -> [u32; 6] {
-    let [ox, oy, oz] = lanes.o;
     let [dx, dy, dz] = lanes.d;
-    let finite = ox.is_finite() & oy.is_finite() & oz.is_finite();
-    let finite = finite & dx.is_finite() & dy.is_finite() & dz.is_finite();
     let zero = TinyLanes::splat(0.0);
-    let null = dx.simd_eq(zero) & dy.simd_eq(zero) & dz.simd_eq(zero);
-    // `simd_le` is false for a NaN on either side, as `!is_nan && tmin <= tmax`.
-    let valid = (finite & lanes.tmin.simd_le(tmax)).to_bitmask() & !null.to_bitmask();
+    let valid = valid_lanes(lanes, tmax);
     let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
     let x = (ax.simd_ge(ay) & ax.simd_ge(az)).to_bitmask() & valid;
     let y = !x & ay.simd_ge(az).to_bitmask() & valid;

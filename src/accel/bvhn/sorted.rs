@@ -27,7 +27,7 @@
 use super::node::{NodeWidth, WideNode, Width};
 use super::tree::Bvh;
 use crate::accel::Primitives;
-use crate::geometry::{Hit, Ray, dominant_axis};
+use crate::geometry::{Hit, Ray, dominant_axis, octant};
 use crate::simd::{PACKET_WIDTH, Packet};
 use std::cell::RefCell;
 
@@ -37,11 +37,7 @@ const KEYS: usize = 24;
 /// The grouping key of a ray: the packet kernel's group (`packet_setup.rs`).
 #[inline(always)]
 fn key(r: &Ray) -> usize {
-    let d = r.dir;
-    let octant = (d.x.is_sign_negative() as usize)
-        | (d.y.is_sign_negative() as usize) << 1
-        | (d.z.is_sign_negative() as usize) << 2;
-    octant * 3 + dominant_axis(d)
+    octant(r.dir) * 3 + dominant_axis(r.dir)
 }
 
 /// Per-thread buffers: the rays in key order and each one's index in the batch.

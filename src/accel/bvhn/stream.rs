@@ -44,7 +44,7 @@ use super::node::{NodeWidth, WideNode, Width, is_leaf};
 use super::stack::insert_far_to_near;
 use super::tree::Bvh;
 use crate::accel::Primitives;
-use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
+use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, octant};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use std::cell::RefCell;
@@ -121,10 +121,7 @@ impl Scratch {
         for r in rays {
             let (k, q) = match RayQuery::new(r) {
                 Some(q) => {
-                    let d = r.dir;
-                    let k = (d.x.is_sign_negative() as u32)
-                        | (d.y.is_sign_negative() as u32) << 1
-                        | (d.z.is_sign_negative() as u32) << 2;
+                    let k = octant(r.dir) as u32;
                     placeholder = Some(q);
                     (k, q)
                 }
@@ -400,12 +397,8 @@ pub fn incoherent_batch(rays: &[Ray]) -> bool {
         .chunks(crate::simd::PACKET_WIDTH)
         .filter(|packet| {
             let groups = packet.iter().fold(0u32, |g, r| {
-                let d = r.dir;
-                let kz = crate::geometry::dominant_axis(d) as u32;
-                let octant = (d.x.is_sign_negative() as u32)
-                    | (d.y.is_sign_negative() as u32) << 1
-                    | (d.z.is_sign_negative() as u32) << 2;
-                g | 1 << (octant * 3 + kz)
+                let kz = crate::geometry::dominant_axis(r.dir);
+                g | 1 << (octant(r.dir) * 3 + kz)
             });
             groups.count_ones() > 2
         })
