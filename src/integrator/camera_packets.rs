@@ -147,8 +147,14 @@ impl CameraSampler {
                 let closed = Packet::splat(self.lens.shutter[0]);
                 for chunk in pixels.chunks(PACKET_WIDTH) {
                     let (mut px, mut py) = ([0.5f32; PACKET_WIDTH], [0.5f32; PACKET_WIDTH]);
-                    for (i, &(x, y, _)) in chunk.iter().enumerate() {
-                        (px[i], py[i]) = (x as f32 + ox, y as f32 + oy);
+                    if let Ok(full) = <&[_; PACKET_WIDTH]>::try_from(chunk) {
+                        // A whole packet: a fixed-length loop the compiler vectorises.
+                        px = full.map(|(x, _, _)| x as f32 + ox);
+                        py = full.map(|(_, y, _)| y as f32 + oy);
+                    } else {
+                        for (i, &(x, y, _)) in chunk.iter().enumerate() {
+                            (px[i], py[i]) = (x as f32 + ox, y as f32 + oy);
+                        }
                     }
                     let (px, py) = (Packet::new(px), Packet::new(py));
                     camera_rays(&self.frame, &self.lens, px, py, None, closed)

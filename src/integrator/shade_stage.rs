@@ -141,8 +141,8 @@ pub(crate) fn shade_queue(
     scratch.batch.build(scene, &queue.rays, hits);
     // The misses, from the batch's material pass (one pass over the hits, not two).
     for i in scratch.batch.misses() {
-        let slot = queue.slot[i] as usize;
-        sinks.acc[slot] += queue.weight[i] * scene.miss_radiance(queue.rays[i].dir);
+        let slot = queue.slot(i) as usize;
+        sinks.acc[slot] += queue.weight(i) * scene.miss_radiance(queue.rays[i].dir);
     }
     let groups = std::mem::take(&mut scratch.batch.groups);
     for (material, range) in &groups {
@@ -181,8 +181,8 @@ fn shade_scalar(
 ) {
     let i = batch.ray[k] as usize;
     let si = batch.interaction(k, material);
-    let slot = queue.slot[i];
-    let weight = queue.weight[i];
+    let slot = queue.slot(i);
+    let weight = queue.weight(i);
     let pixel = sinks.slot_pixel[slot as usize];
     let out = &mut sinks.emitted;
     shader.shade_emit(
@@ -190,9 +190,9 @@ fn shade_scalar(
         queue.rays[i].time,
         &si,
         depth,
-        queue.throughput[i],
+        queue.throughput(i),
         pixel,
-        queue.path[i],
+        queue.path(i),
         out,
         &mut sinks.rays,
         &mut sinks.drawn,
@@ -382,10 +382,10 @@ fn shade_group_lanes(
         let mut paths = LanePaths::default();
         for (i, &q) in batch.ray[j..j + n].iter().enumerate() {
             let q = q as usize;
-            paths.set(i, queue.slot[q], queue.weight[q], queue.rays[q].time);
+            paths.set(i, queue.slot(q), queue.weight(q), queue.rays[q].time);
             if lane_children {
-                children.throughput[i] = queue.throughput[q];
-                children.path[i] = queue.path[q];
+                children.throughput[i] = queue.throughput(q);
+                children.path[i] = queue.path(q);
             }
         }
         if keep_albedo {
@@ -432,11 +432,11 @@ fn shade_group_lanes(
     let per_hit = (lit && !lanes.quads.is_empty()) || (spawns && !lane_children);
     for k in range.clone().filter(|_| per_hit) {
         let q = batch.ray[k] as usize;
-        let slot = queue.slot[q];
-        let weight = queue.weight[q];
+        let slot = queue.slot(q);
+        let weight = queue.weight(q);
         let time = queue.rays[q].time;
         let pixel = sinks.slot_pixel[slot as usize];
-        let path = queue.path[q];
+        let path = queue.path(q);
         let mut stream = None;
         if lit && !lanes.quads.is_empty() {
             let h = ShadingPoint {
@@ -469,7 +469,7 @@ fn shade_group_lanes(
                 time,
                 &si,
                 depth,
-                queue.throughput[q],
+                queue.throughput(q),
                 pixel,
                 path,
                 &mut stream,

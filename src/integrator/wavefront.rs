@@ -384,11 +384,39 @@ fn render_tile(
     ws.pixels.clear();
     for by in (tile.y0..tile.y1).step_by(BLOCK as usize) {
         for bx in (tile.x0..tile.x1).step_by(BLOCK as usize) {
-            for y in by..(by + BLOCK).min(tile.y1) {
-                for x in bx..(bx + BLOCK).min(tile.x1) {
-                    let index = y as u64 * opts.width as u64 + x as u64;
-                    ws.pixels.push((x, y, index));
-                    ws.unresolved.push((y - tile.y0) * tile_w + (x - tile.x0));
+            // A block row at a time, up to the chunk's free room, each array extended
+            // in bulk (pushing pixel by pixel kept both lengths in memory: the loop
+            // was as long as the rest of the camera stage, bunny 1024x1024).
+            let x1 = (bx + BLOCK).min(tile.x1);
+            let y1 = (by + BLOCK).min(tile.y1);
+            const FULL: usize = (BLOCK * BLOCK) as usize;
+            if x1 - bx == BLOCK && y1 - by == BLOCK && chunk_pixels - ws.pixels.len() >= FULL {
+                // A whole block that fits the chunk: both arrays from the stack at once.
+                let pixels: [(u32, u32, u64); FULL] = std::array::from_fn(|i| {
+                    let (x, y) = (bx + i as u32 % BLOCK, by + i as u32 / BLOCK);
+                    (x, y, y as u64 * opts.width as u64 + x as u64)
+                });
+                ws.pixels.extend_from_slice(&pixels);
+                ws.unresolved.extend_from_slice(&pixels.map(|(x, y, _)| {
+                    (y - tile.y0) * tile_w + (x - tile.x0)
+                }));
+                if ws.pixels.len() >= chunk_pixels {
+                    emit(ws, &mut stages, &mut t, false);
+                }
+                continue;
+            }
+            for y in by..y1 {
+                let row = y as u64 * opts.width as u64;
+                let tile_row = (y - tile.y0) * tile_w;
+                let mut x0 = bx;
+                while x0 < x1 {
+                    let room = chunk_pixels - ws.pixels.len();
+                    let x_end = x1.min(x0.saturating_add(room as u32));
+                    ws.pixels
+                        .extend((x0..x_end).map(|x| (x, y, row + x as u64)));
+                    ws.unresolved
+                        .extend((x0..x_end).map(|x| tile_row + (x - tile.x0)));
+                    x0 = x_end;
                     if ws.pixels.len() >= chunk_pixels {
                         emit(ws, &mut stages, &mut t, false);
                     }

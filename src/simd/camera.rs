@@ -62,7 +62,7 @@ fn normalize<L: Lanes>(v: [L; 3]) -> [L; 3] {
 /// [`crate::geometry::warp::sample_aperture`] returns them; `None`: pinhole) and the
 /// shutter times `time`: lane `i` equals
 /// `lens_frame.ray(frame, frame.ray(px[i], py[i]), lens[i], time[i])` bit for bit.
-#[inline]
+#[inline(always)]
 pub fn camera_rays<L: Lanes>(
     frame: &CameraFrame,
     lens_frame: &LensFrame,
