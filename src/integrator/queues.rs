@@ -284,6 +284,76 @@ impl RayQueue {
 mod tests {
     use super::*;
 
+    /// Every per-ray value of `q` through the accessors, as bits.
+    fn values(q: &RayQueue) -> Vec<(u32, [u32; 3], [u32; 3], u64)> {
+        (0..q.rays.len())
+            .map(|i| {
+                (
+                    q.slot(i),
+                    q.weight(i).to_array().map(f32::to_bits),
+                    q.throughput(i).to_array().map(f32::to_bits),
+                    q.path(i),
+                )
+            })
+            .collect()
+    }
+
+    /// A camera run (only the rays stored) hands out, through the accessors, what the
+    /// rays pushed one by one with their values written out hold: for 1 and 3 rays per
+    /// pixel, a run appended in pieces (continuations stay a run), a piece that does
+    /// not continue the run and a push after a run (both write the run out first).
+    #[test]
+    fn camera_runs_hand_out_what_pushed_rays_store() {
+        let ray = |i: usize| Ray::new(Vec3::splat(i as f32), Vec3::X);
+        for per_pixel in [1usize, 3] {
+            let first_path = 40;
+            // (first ray of the piece in generation order, rays, first slot)
+            let pieces = [(0usize, 5usize, 7u32), (5, 4, 12), (9, 1, 16), (10, 2, 50)];
+            let mut run = RayQueue::default();
+            let mut pushed = RayQueue::default();
+            for (k, &(r, n, first_slot)) in pieces.iter().enumerate() {
+                let mut rays: Vec<Ray> = (r..r + n).map(ray).collect();
+                run.append_camera(&mut rays, first_slot, (first_path, r, per_pixel));
+                assert!(rays.is_empty());
+                for i in 0..n {
+                    let path = first_path + ((r + i) % per_pixel) as u64;
+                    pushed.push(
+                        ray(r + i),
+                        first_slot + i as u32,
+                        Vec3::ONE,
+                        Vec3::ONE,
+                        path,
+                    );
+                }
+                // The first three pieces continue one run: nothing but rays stored.
+                assert_eq!(run.camera.is_some(), k < 3, "piece {k}");
+                assert_eq!(run.slot.is_empty(), k < 3, "piece {k}");
+                assert_eq!(run.rays, pushed.rays);
+                assert_eq!(
+                    values(&run),
+                    values(&pushed),
+                    "per pixel {per_pixel}, piece {k}"
+                );
+            }
+            let mut fresh = RayQueue::default();
+            let mut rays: Vec<Ray> = (0..4).map(ray).collect();
+            fresh.append_camera(&mut rays, 3, (first_path, 1, per_pixel));
+            let mut want = RayQueue::default();
+            for i in 0..4 {
+                let path = first_path + ((1 + i) % per_pixel) as u64;
+                want.push(ray(i), 3 + i as u32, Vec3::ONE, Vec3::ONE, path);
+            }
+            assert_eq!(values(&fresh), values(&want));
+            let extra = (ray(9), 99, Vec3::new(0.5, 0.25, 2.0), Vec3::splat(0.5), 7);
+            fresh.push(extra.0, extra.1, extra.2, extra.3, extra.4);
+            want.push(extra.0, extra.1, extra.2, extra.3, extra.4);
+            assert!(fresh.camera.is_none());
+            assert_eq!(values(&fresh), values(&want));
+            fresh.clear();
+            assert!(fresh.camera.is_none() && values(&fresh).is_empty());
+        }
+    }
+
     /// Indexing, iteration and `map` agree on which field belongs to which kind, and
     /// iteration follows the order the wavefront traces its queues.
     #[test]

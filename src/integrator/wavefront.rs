@@ -397,9 +397,9 @@ fn render_tile(
                     (x, y, y as u64 * opts.width as u64 + x as u64)
                 });
                 ws.pixels.extend_from_slice(&pixels);
-                ws.unresolved.extend_from_slice(&pixels.map(|(x, y, _)| {
-                    (y - tile.y0) * tile_w + (x - tile.x0)
-                }));
+                ws.unresolved.extend_from_slice(
+                    &pixels.map(|(x, y, _)| (y - tile.y0) * tile_w + (x - tile.x0)),
+                );
                 if ws.pixels.len() >= chunk_pixels {
                     emit(ws, &mut stages, &mut t, false);
                 }
