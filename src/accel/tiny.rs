@@ -183,6 +183,13 @@ impl TinyScene {
     /// Closest hits of `rays` over the triangles and spheres into `out` (`None` for a
     /// miss or an invalid ray): the scene-level answer of the triangle set merged with
     /// the sphere set, as `SceneAccel::closest_hit` merges them.
+    ///
+    /// Where it goes (callgrind, whitted_base, 1 thread, 1.68 M rays in 106,839 lane
+    /// groups of 15.7 rays on average): the lane kernel (`TinyGroup::closest`, 2
+    /// triangles and 2 spheres) 139 M instructions, ~1300 per group (with AVX2 a
+    /// 16-lane value is two registers: 368 of the 1613 instructions of its code are
+    /// spills and reloads; 145 M before the lane primitive index); grouping, loading
+    /// and writing the hits back 81 M (90 M before the transposed loads).
     pub fn closest_batch(
         &self,
         rays: &[Ray],

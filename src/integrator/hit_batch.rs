@@ -121,10 +121,11 @@ impl HitBatch {
 
     /// Rebuilds the batch from the rays of a queue and their hits (misses are left out).
     pub fn build(&mut self, scene: &Scene, rays: &[Ray], hits: &[Option<SceneHit>]) {
-        // Counting sort on the material index, the misses counted in a last bucket
-        // (`materials`) that is cut off after the placement.
+        // Counting sort on the material index: material m in bucket m + 1, the misses
+        // in bucket 0 (placed after every hit and cut off; a material index past the
+        // scene's is out of bounds, as before).
         let materials = scene.materials.len();
-        let bucket = |m: u32| (m as usize).min(materials);
+        let bucket = |m: u32| m.wrapping_add(1) as usize;
         self.count.clear();
         self.count.resize(materials + 1, 0);
         // Written by index over a sized array, not pushed (a capacity check per hit was
@@ -158,18 +159,19 @@ impl HitBatch {
         self.count[bucket(cur)] += run;
         self.groups.clear();
         let mut start = 0;
-        for m in 0..=materials {
-            let n = self.count[m] as usize;
-            // Prefix sum: count[m] becomes the first slot of material m (of the
-            // misses for m == materials).
-            self.count[m] = start as u32;
-            if n > 0 && m < materials {
+        for m in 0..materials {
+            let n = self.count[m + 1] as usize;
+            // Prefix sum: the bucket of material m becomes its first slot.
+            self.count[m + 1] = start as u32;
+            if n > 0 {
                 self.groups.push((m as u32, start..start + n));
             }
             start += n;
         }
-        // The misses' bucket starts after every hit.
-        let n_hits = self.count[materials] as usize;
+        // The misses after every hit.
+        let n_hits = start;
+        start += self.count[0] as usize;
+        self.count[0] = n_hits as u32;
         self.ray.clear();
         self.ray.resize(start, 0);
         // The next slot of the current run in a register, as above.
