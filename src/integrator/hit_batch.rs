@@ -24,7 +24,9 @@ use crate::geometry::Ray;
 use crate::scene::{Scene, TriangleMesh};
 use crate::simd::Lanes;
 use crate::simd::Packet;
+use crate::simd::kernels::RayLanes;
 use crate::simd::lanes3::V3;
+use crate::simd::ray_gather::gather_rays;
 use crate::simd::surface::{
     SphereHits, Surfaces, TriangleHits, sphere_surfaces, triangle_surfaces,
 };
@@ -119,38 +121,71 @@ impl HitBatch {
 
     /// Rebuilds the batch from the rays of a queue and their hits (misses are left out).
     pub fn build(&mut self, scene: &Scene, rays: &[Ray], hits: &[Option<SceneHit>]) {
-        // Counting sort on the material index.
+        // Counting sort on the material index: material m in bucket m + 1, the misses
+        // in bucket 0 (placed after every hit and cut off; a material index past the
+        // scene's is out of bounds, as before).
+        let materials = scene.materials.len();
+        let bucket = |m: u32| m.wrapping_add(1) as usize;
         self.count.clear();
-        self.count.resize(scene.materials.len() + 1, 0);
+        self.count.resize(materials + 1, 0);
         // Written by index over a sized array, not pushed (a capacity check per hit was
         // a quarter of `shade_queue`'s own time, whitted_aa3x3).
         self.material.resize(hits.len(), 0);
+        // Queue order holds runs of one material (neighbouring pixels see the same
+        // surface), so the count of the current run is kept in a register and added
+        // to its bucket when the run ends: a count per hit in memory made every hit
+        // wait on the store of the one before (the same counter).
+        let (mut cur, mut run) = (MISS, 0u32);
         for (m, hit) in self.material.iter_mut().zip(hits) {
-            *m = hit.map_or(MISS, |h| material_of(scene, h.prim));
-            if *m != MISS {
-                self.count[*m as usize + 1] += 1;
+            *m = match hit {
+                None => MISS,
+                // The static mesh and spheres inline (a call per hit otherwise).
+                Some(SceneHit {
+                    prim: PrimRef::Triangle(t),
+                    ..
+                }) => scene.mesh.material[*t as usize],
+                Some(SceneHit {
+                    prim: PrimRef::Sphere(s),
+                    ..
+                }) => scene.spheres.material[*s as usize],
+                Some(h) => material_of(scene, h.prim),
+            };
+            if *m != cur {
+                self.count[bucket(cur)] += run;
+                (cur, run) = (*m, 0);
             }
+            run += 1;
         }
+        self.count[bucket(cur)] += run;
         self.groups.clear();
         let mut start = 0;
-        for m in 0..scene.materials.len() {
+        for m in 0..materials {
             let n = self.count[m + 1] as usize;
-            // Prefix sum: count[m] becomes the first slot of material m.
-            self.count[m] = start as u32;
+            // Prefix sum: the bucket of material m becomes its first slot.
+            self.count[m + 1] = start as u32;
             if n > 0 {
                 self.groups.push((m as u32, start..start + n));
             }
             start += n;
         }
+        // The misses after every hit.
+        let n_hits = start;
+        start += self.count[0] as usize;
+        self.count[0] = n_hits as u32;
         self.ray.clear();
         self.ray.resize(start, 0);
+        // The next slot of the current run in a register, as above.
+        let (mut cur, mut at) = (bucket(MISS), self.count[bucket(MISS)]);
         for (i, &m) in self.material.iter().enumerate() {
-            if m != MISS {
-                let at = &mut self.count[m as usize];
-                self.ray[*at as usize] = i as u32;
-                *at += 1;
+            let b = bucket(m);
+            if b != cur {
+                self.count[cur] = at;
+                (cur, at) = (b, self.count[b]);
             }
+            self.ray[at as usize] = i as u32;
+            at += 1;
         }
+        self.ray.truncate(n_hits);
         self.fill(scene, rays, hits);
     }
 
@@ -159,6 +194,14 @@ impl HitBatch {
     /// ([`triangle_surfaces`], [`sphere_surfaces`]; a lane group holding both computes
     /// both and selects), the others (planes, instances, moving primitives) one by one through
     /// [`SurfaceInteraction::new`], the oracle of the lanes. Then zeroes the padding.
+    ///
+    /// The lanes' rays are loaded transposed ([`gather_rays`]), and a lane group whose
+    /// triangle (or sphere) lanes all hit one primitive takes its corners (centre and
+    /// radius) as one splat instead of lane by lane: the gathers were about half
+    /// of this function's samples (perf annotate, whitted_base aa3x3, 1 thread),
+    /// and most lane groups of a scene of large primitives hit one. `fill` went from
+    /// 140.7 M to 99.0 M instructions (callgrind, whitted_base, 1 thread), the sort
+    /// before it from 42.8 M to 29.8 M.
     ///
     /// Tried and not kept: lane groups starting at each material group's first hit (so
     /// that a lane group holds both kinds only where one material covers triangles and
@@ -195,42 +238,54 @@ impl HitBatch {
         let any_textured = scene.materials.iter().any(|m| !m.textures.is_empty());
         let mut g = Gather::default();
         let mut sg = SphereGather::default();
+        // Lanes of another kind, or past the last hit, keep stale values: lanes never
+        // mix.
+        let mut hit_lanes = HitLanes::default();
         for k0 in (0..n).step_by(LANES) {
             let m = (n - k0).min(LANES);
-            // Lanes on the static mesh and on static spheres, gathered; the rest
-            // through the scalar path.
+            // The lanes past the last hit repeat the first hit's ray (any ray will do:
+            // lanes never mix, and the padding is zeroed at the end).
+            let mut idx = [self.ray[k0]; LANES];
+            idx[..m].copy_from_slice(&self.ray[k0..k0 + m]);
+            // Lanes on the static mesh and on static spheres; the rest through the
+            // scalar path.
             let (mut triangles, mut spheres) = (0u32, 0u32);
-            for l in 0..m {
-                let i = self.ray[k0 + l] as usize;
-                let hit = hits[i].as_ref().expect("sorted entries are hits");
+            for (l, &i) in idx[..m].iter().enumerate() {
+                let hit = hits[i as usize].as_ref().expect("sorted entries are hits");
                 match hit.prim {
                     PrimRef::Triangle(t) => {
                         triangles |= 1 << l;
-                        g.set(mesh, with_normals, l, t as usize, hit, &rays[i]);
+                        hit_lanes.prim[l] = t;
                     }
                     PrimRef::Sphere(s) => {
                         spheres |= 1 << l;
-                        sg.set(scene, l, s as usize, hit, &rays[i]);
+                        hit_lanes.prim[l] = s;
                     }
                     _ => {}
                 }
+                (hit_lanes.t[l], hit_lanes.u[l], hit_lanes.v[l]) = (hit.t, hit.u, hit.v);
             }
             let lanes = triangles | spheres;
             // One lane form where the group holds one kind (each call inlined, writing
             // straight into the columns), both merged by a select where it holds both.
-            if triangles != 0 && spheres == 0 {
-                self.put(k0, &triangle_surfaces(&g.lanes(with_normals)));
-            } else if spheres != 0 && triangles == 0 {
-                self.put(k0, &sphere_surfaces(&sg.lanes()));
-            } else if lanes != 0 {
-                let (t, s) = (
-                    triangle_surfaces(&g.lanes(with_normals)),
-                    sphere_surfaces(&sg.lanes()),
-                );
-                self.put(
-                    k0,
-                    &Surfaces::select(Packet::mask_from_bits(spheres), &s, &t),
-                );
+            if lanes != 0 {
+                let (r, _) = gather_rays(rays, &idx);
+                if spheres == 0 {
+                    let h = g.hits(mesh, with_normals, triangles, &hit_lanes, &r);
+                    self.put(k0, &triangle_surfaces(&h));
+                } else if triangles == 0 {
+                    let h = sg.hits(scene, spheres, &hit_lanes, &r);
+                    self.put(k0, &sphere_surfaces(&h));
+                } else {
+                    let (t, s) = (
+                        triangle_surfaces(&g.hits(mesh, with_normals, triangles, &hit_lanes, &r)),
+                        sphere_surfaces(&sg.hits(scene, spheres, &hit_lanes, &r)),
+                    );
+                    self.put(
+                        k0,
+                        &Surfaces::select(Packet::mask_from_bits(spheres), &s, &t),
+                    );
+                }
             }
             let all = if m == LANES { 0xffff } else { (1u32 << m) - 1 };
             if !any_textured && lanes == all {
@@ -313,92 +368,142 @@ impl HitBatch {
     }
 }
 
-/// One lane group of triangle hits, gathered from the mesh for [`triangle_surfaces`]:
-/// corner positions and raw vertex normals (component major), barycentrics and the
-/// ray direction.
+/// Per lane of one lane group: the primitive index (of the kind the lane's bit says)
+/// and the hit's distance and barycentrics.
+#[derive(Default)]
+struct HitLanes {
+    prim: [u32; LANES],
+    t: [f32; LANES],
+    u: [f32; LANES],
+    v: [f32; LANES],
+}
+
+/// The primitive shared by the lanes of `mask` (non-zero), if they all hit one.
+#[inline(always)]
+fn shared_prim(mask: u32, prim: &[u32; LANES]) -> Option<usize> {
+    let first = prim[mask.trailing_zeros() as usize];
+    let same = (0..LANES).all(|l| mask >> l & 1 == 0 || prim[l] == first);
+    same.then_some(first as usize)
+}
+
+/// The lanes of `mask`, bit by bit.
+#[inline(always)]
+fn for_each_lane(mut mask: u32, mut f: impl FnMut(usize)) {
+    while mask != 0 {
+        f(mask.trailing_zeros() as usize);
+        mask &= mask - 1;
+    }
+}
+
+/// Scratch of the triangle lanes gathered from the mesh for [`triangle_surfaces`]
+/// where a lane group's triangle lanes hit several triangles: corner positions and raw
+/// vertex normals, component major (lanes of other kinds keep stale values: lanes
+/// never mix).
 #[derive(Default)]
 struct Gather {
     corners: [[[f32; LANES]; 3]; 3],
     normals: [[[f32; LANES]; 3]; 3],
-    u: [f32; LANES],
-    v: [f32; LANES],
-    dir: [[f32; LANES]; 3],
 }
 
 impl Gather {
-    /// Lane `l` from the hit `hit` of `ray` on triangle `t` of `mesh`.
+    /// The triangle hits of the lanes `mask` of `h` (rays `r`) on `mesh`.
     #[inline(always)]
-    fn set(
+    fn hits(
         &mut self,
         mesh: &TriangleMesh,
         with_normals: bool,
-        l: usize,
-        t: usize,
-        hit: &SceneHit,
-        ray: &Ray,
-    ) {
-        let corners = [mesh.i0[t], mesh.i1[t], mesh.i2[t]];
-        for (c, &vi) in corners.iter().enumerate() {
+        mask: u32,
+        h: &HitLanes,
+        r: &RayLanes<Packet>,
+    ) -> TriangleHits {
+        let raw_normal = |vi: u32| {
             let vi = vi as usize;
-            self.corners[c][0][l] = mesh.xs[vi];
-            self.corners[c][1][l] = mesh.ys[vi];
-            self.corners[c][2][l] = mesh.zs[vi];
-            if with_normals {
-                self.normals[c][0][l] = mesh.nxs[vi];
-                self.normals[c][1][l] = mesh.nys[vi];
-                self.normals[c][2][l] = mesh.nzs[vi];
-            }
-        }
-        (self.u[l], self.v[l]) = (hit.u, hit.v);
-        (self.dir[0][l], self.dir[1][l], self.dir[2][l]) = (ray.dir.x, ray.dir.y, ray.dir.z);
-    }
-
-    fn lanes(&self, with_normals: bool) -> TriangleHits {
-        let v3 = |a: &[[f32; LANES]; 3]| V3::load(&a[0], &a[1], &a[2]);
+            Vec3::new(mesh.nxs[vi], mesh.nys[vi], mesh.nzs[vi])
+        };
+        let corner_ids = |t: usize| [mesh.i0[t], mesh.i1[t], mesh.i2[t]];
+        let (corners, normals) = if let Some(t) = shared_prim(mask, &h.prim) {
+            (
+                mesh.corners(t).map(V3::splat),
+                with_normals.then(|| corner_ids(t).map(|vi| V3::splat(raw_normal(vi)))),
+            )
+        } else {
+            for_each_lane(mask, |l| {
+                let t = h.prim[l] as usize;
+                for (c, &vi) in corner_ids(t).iter().enumerate() {
+                    let vi = vi as usize;
+                    self.corners[c][0][l] = mesh.xs[vi];
+                    self.corners[c][1][l] = mesh.ys[vi];
+                    self.corners[c][2][l] = mesh.zs[vi];
+                    if with_normals {
+                        self.normals[c][0][l] = mesh.nxs[vi];
+                        self.normals[c][1][l] = mesh.nys[vi];
+                        self.normals[c][2][l] = mesh.nzs[vi];
+                    }
+                }
+            });
+            let v3 = |a: &[[f32; LANES]; 3]| V3::load(&a[0], &a[1], &a[2]);
+            (
+                self.corners.each_ref().map(v3),
+                with_normals.then(|| self.normals.each_ref().map(v3)),
+            )
+        };
         TriangleHits {
-            corners: self.corners.each_ref().map(v3),
-            normals: with_normals.then(|| self.normals.each_ref().map(v3)),
-            u: Packet::new(self.u),
-            v: Packet::new(self.v),
-            dir: v3(&self.dir),
+            corners,
+            normals,
+            u: Packet::new(h.u),
+            v: Packet::new(h.v),
+            dir: V3 {
+                x: r.d[0],
+                y: r.d[1],
+                z: r.d[2],
+            },
         }
     }
 }
 
-/// One lane group of static sphere hits, gathered for [`sphere_surfaces`]: centre and
-/// radius of the sphere, the ray's origin and direction, and the hit distance.
+/// Scratch of the sphere lanes where a lane group's sphere lanes hit several static
+/// spheres: centre and radius (other lanes stale, as in [`Gather`]).
 #[derive(Default)]
 struct SphereGather {
     center: [[f32; LANES]; 3],
     radius: [f32; LANES],
-    origin: [[f32; LANES]; 3],
-    dir: [[f32; LANES]; 3],
-    t: [f32; LANES],
 }
 
 impl SphereGather {
-    /// Lane `l` from the hit `hit` of `ray` on static sphere `s` of `scene`.
+    /// The static sphere hits of the lanes `mask` of `h` (rays `r`) in `scene`.
     #[inline(always)]
-    fn set(&mut self, scene: &Scene, l: usize, s: usize, hit: &SceneHit, ray: &Ray) {
+    fn hits(&mut self, scene: &Scene, mask: u32, h: &HitLanes, r: &RayLanes<Packet>) -> SphereHits {
         let spheres = &scene.spheres;
-        let c = spheres.center(s);
-        for a in 0..3 {
-            self.center[a][l] = c[a];
-            self.origin[a][l] = ray.origin[a];
-            self.dir[a][l] = ray.dir[a];
-        }
-        self.radius[l] = spheres.radius[s];
-        self.t[l] = hit.t;
-    }
-
-    fn lanes(&self) -> SphereHits {
-        let v3 = |a: &[[f32; LANES]; 3]| V3::load(&a[0], &a[1], &a[2]);
+        let (center, radius) = if let Some(s) = shared_prim(mask, &h.prim) {
+            (
+                V3::splat(spheres.center(s)),
+                Packet::splat(spheres.radius[s]),
+            )
+        } else {
+            for_each_lane(mask, |l| {
+                let s = h.prim[l] as usize;
+                let c = spheres.center(s);
+                for a in 0..3 {
+                    self.center[a][l] = c[a];
+                }
+                self.radius[l] = spheres.radius[s];
+            });
+            (
+                V3::load(&self.center[0], &self.center[1], &self.center[2]),
+                Packet::new(self.radius),
+            )
+        };
+        let v3 = |a: &[Packet; 3]| V3 {
+            x: a[0],
+            y: a[1],
+            z: a[2],
+        };
         SphereHits {
-            center: v3(&self.center),
-            radius: Packet::new(self.radius),
-            origin: v3(&self.origin),
-            dir: v3(&self.dir),
-            t: Packet::new(self.t),
+            center,
+            radius,
+            origin: v3(&r.o),
+            dir: v3(&r.d),
+            t: Packet::new(h.t),
         }
     }
 }
@@ -408,6 +513,7 @@ mod tests {
     use super::*;
     use crate::accel::{AccelKind, SceneAccel};
     use crate::scene::load::load_scene;
+    use crate::test_rng::xorshift64;
 
     fn bits(v: Vec3) -> [u32; 3] {
         v.to_array().map(f32::to_bits)
@@ -432,16 +538,29 @@ mod tests {
         // an earlier, larger batch may show through.
         let mut batch = HitBatch::default();
         let (mut mixed, mut misses) = (0, 0);
-        for path in &paths {
-            let name = path.display();
+        // Lane groups whose triangle (sphere) lanes hit one primitive (its data
+        // splat) and several (gathered lane by lane).
+        let (mut one_triangle, mut several_triangles) = (0, 0);
+        let (mut one_sphere, mut several_spheres) = (0, 0);
+        let mut next = xorshift64(0x5eed_1234_abcd_0001);
+        // Every scene in pixel order (runs of one material, as a queue holds them) and
+        // shuffled (a material change at almost every hit: the counting sort's runs
+        // at their shortest).
+        for (path, shuffled) in paths.iter().flat_map(|p| [(p, false), (p, true)]) {
+            let name = format!("{} (shuffled {shuffled})", path.display());
             let scene = load_scene(path).unwrap_or_else(|e| panic!("{name}: {e}"));
             let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
             let (w, h) = (64, 48);
             let frame = scene.camera.frame(w, h);
-            let rays: Vec<Ray> = (0..h)
+            let mut rays: Vec<Ray> = (0..h)
                 .flat_map(|y| (0..w).map(move |x| (x, y)))
                 .map(|(x, y)| frame.ray(x as f32 + 0.5, y as f32 + 0.5))
                 .collect();
+            if shuffled {
+                for i in (1..rays.len()).rev() {
+                    rays.swap(i, (next() % (i as u64 + 1)) as usize);
+                }
+            }
             let hits: Vec<_> = rays.iter().map(|r| accel.closest_hit(r)).collect();
             batch.build(&scene, &rays, &hits);
             let n_hits = hits.iter().filter(|h| h.is_some()).count();
@@ -496,6 +615,31 @@ mod tests {
                     .iter()
                     .any(|i| matches!(kind(i), Some(PrimRef::Sphere(_))));
                 mixed += (tri && sph) as usize;
+                let prims = |want: fn(PrimRef) -> Option<u32>| {
+                    let mut p: Vec<u32> = group
+                        .iter()
+                        .filter_map(|i| kind(i).and_then(want))
+                        .collect();
+                    p.sort_unstable();
+                    p.dedup();
+                    p.len()
+                };
+                match prims(|p| match p {
+                    PrimRef::Triangle(t) => Some(t),
+                    _ => None,
+                }) {
+                    0 => {}
+                    1 => one_triangle += 1,
+                    _ => several_triangles += 1,
+                }
+                match prims(|p| match p {
+                    PrimRef::Sphere(s) => Some(s),
+                    _ => None,
+                }) {
+                    0 => {}
+                    1 => one_sphere += 1,
+                    _ => several_spheres += 1,
+                }
             }
             // The padding of the last lane load is zero (the columns may be longer:
             // they keep the length of the largest batch built).
@@ -511,8 +655,18 @@ mod tests {
         }
         eprintln!(
             "{} scenes: {triangle} triangle hits in lanes ({smooth} smooth), {sphere} sphere \
-             hits in lanes, {other} others; {mixed} lane groups of both",
+             hits in lanes, {other} others; {mixed} lane groups of both; lane groups of \
+             one triangle {one_triangle}, of several {several_triangles}, of one sphere \
+             {one_sphere}, of several {several_spheres}",
             paths.len()
+        );
+        assert!(
+            one_triangle > 100 && several_triangles > 100,
+            "triangle lane groups"
+        );
+        assert!(
+            one_sphere > 100 && several_spheres > 100,
+            "sphere lane groups"
         );
         assert!(misses > 1_000, "{misses} misses compared");
         assert!(

@@ -24,6 +24,7 @@ pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
 pub mod quant;
+pub mod ray_gather;
 pub mod ray_store;
 pub mod specular;
 pub mod surface;

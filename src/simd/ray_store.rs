@@ -64,7 +64,7 @@ pub fn append_plain(o: [&[f32]; 3], d: [&[f32]; 3], t: &[f32], n: usize, out: &m
 }
 
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-mod avx2 {
+pub(super) mod avx2 {
     use std::arch::x86_64::*;
 
     /// Writes rays `0..n` as nine floats each from `dst` on.
@@ -100,9 +100,10 @@ mod avx2 {
         }
     }
 
-    /// 8x8 transpose: row `i` of the result holds lane `i` of every input, in order.
+    /// 8x8 transpose: row `i` of the result holds lane `i` of every input, in order
+    /// (also `simd::ray_gather`'s, the other way: rays to component rows).
     #[inline(always)]
-    unsafe fn transpose(r: [__m256; 8]) -> [__m256; 8] {
+    pub(in crate::simd) unsafe fn transpose(r: [__m256; 8]) -> [__m256; 8] {
         unsafe {
             let t0 = _mm256_unpacklo_ps(r[0], r[1]);
             let t1 = _mm256_unpackhi_ps(r[0], r[1]);
