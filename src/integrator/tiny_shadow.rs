@@ -346,7 +346,11 @@ impl LaneOccluders {
             for (corners, reach) in self.triangles.iter().zip(reach) {
                 let test = mask & reach & !t;
                 if test != 0 {
-                    t |= g.triangle_blocks(corners, test);
+                    // The light's own triangles, beyond the segments' ends.
+                    let test = test & !g.beyond(corners, test);
+                    if test != 0 {
+                        t |= g.triangle_blocks(corners, test);
+                    }
                 }
             }
             tri |= t;
