@@ -140,7 +140,13 @@ pub struct LaneOccluders {
     triangles: Vec<[Vec3; 3]>,
     /// Their planes: lanes leaving a triangle's plane from its origin's side skip it.
     planes: Vec<TrianglePlane>,
+    /// Per plane, an earlier one that is the same plane (`TrianglePlane::same_plane`:
+    /// the two triangles of a quad), whose side and culled lanes it takes.
+    twins: Vec<Option<usize>>,
     spheres: Vec<(Vec3, f32)>,
+    /// Per sphere of the opaque and of the glass list, its index in `spheres` (the
+    /// lists are parts of it), so that each sphere is tested once per shading point.
+    glass_index: (Vec<Option<usize>>, Vec<Option<usize>>),
     /// Where the sphere set is split: the opaque spheres, the glass spheres and their
     /// transmission (`SphereShadow::Glass`).
     glass: Option<GlassSet>,
@@ -256,10 +262,27 @@ impl LaneOccluders {
                 } => Some((opaque.to_vec(), glass.to_vec(), transmission)),
             },
         };
+        let planes: Vec<TrianglePlane> = tiny.triangles().iter().map(TrianglePlane::new).collect();
+        let twins = (0..planes.len())
+            .map(|i| (0..i).find(|&j| planes[j].same_plane(&planes[i])))
+            .collect();
+        let spheres = tiny.spheres().to_vec();
+        let index = |list: &[(Vec3, f32)]| {
+            list.iter()
+                .map(|s| spheres.iter().position(|a| a.0 == s.0 && a.1 == s.1))
+                .collect()
+        };
+        let glass_index = glass
+            .as_ref()
+            .map_or((Vec::new(), Vec::new()), |g: &GlassSet| {
+                (index(&g.0), index(&g.1))
+            });
         Some(LaneOccluders {
             triangles: tiny.triangles().to_vec(),
-            planes: tiny.triangles().iter().map(TrianglePlane::new).collect(),
-            spheres: tiny.spheres().to_vec(),
+            planes,
+            twins,
+            spheres,
+            glass_index,
             glass,
         })
     }
@@ -269,16 +292,28 @@ impl LaneOccluders {
     /// [`sphere_clear_of`]); one bit per sphere of the scene's list, of the opaque and
     /// of the glass list.
     pub fn spheres_near(&self, base: Vec3, q: &QuadLight) -> NearSpheres {
-        let bits = |list: &[(Vec3, f32)]| {
-            list.iter().enumerate().fold(0u32, |b, (k, &(c, r))| {
-                b | ((!sphere_clear_of(base, q, c, r)) as u32) << (k & 31)
-            })
+        let near = |&(c, r): &(Vec3, f32)| !sphere_clear_of(base, q, c, r);
+        let all = self
+            .spheres
+            .iter()
+            .enumerate()
+            .fold(0u32, |b, (k, s)| b | (near(s) as u32) << (k & 31));
+        // A listed sphere that is one of `spheres` takes its bit (the same call).
+        let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
+            list.iter()
+                .zip(index)
+                .enumerate()
+                .fold(0u32, |b, (k, (s, i))| {
+                    let n = i.map_or_else(|| near(s), |i| all >> (i & 31) & 1 == 1);
+                    b | (n as u32) << (k & 31)
+                })
         };
+        let (oi, gi) = &self.glass_index;
         NearSpheres {
             sides: (None, [None; TINY_MAX_PRIMITIVES]),
-            all: bits(&self.spheres),
-            opaque: self.glass.as_ref().map_or(0, |g| bits(&g.0)),
-            glass: self.glass.as_ref().map_or(0, |g| bits(&g.1)),
+            all,
+            opaque: self.glass.as_ref().map_or(0, |g| bits(&g.0, oi)),
+            glass: self.glass.as_ref().map_or(0, |g| bits(&g.1, gi)),
         }
     }
 
@@ -320,15 +355,20 @@ impl LaneOccluders {
         if let Some(o) = shared {
             if near_spheres.sides.0 != Some(o) {
                 let mut sides = [None; TINY_MAX_PRIMITIVES];
-                for (side, plane) in sides.iter_mut().zip(&self.planes) {
-                    *side = plane.side(o);
+                for (i, (plane, twin)) in self.planes.iter().zip(&self.twins).enumerate() {
+                    sides[i] = match *twin {
+                        Some(j) => sides[j],
+                        None => plane.side(o),
+                    };
                 }
                 near_spheres.sides = (Some(o), sides);
             }
             let sides = &near_spheres.sides.1;
-            for ((reach, plane), side) in reach.iter_mut().zip(&self.planes).zip(sides) {
-                if let Some(side) = *side {
-                    *reach &= !plane.leaving(side, &lanes.d, valid);
+            for (i, (plane, twin)) in self.planes.iter().zip(&self.twins).enumerate() {
+                match (*twin, sides[i]) {
+                    (Some(j), _) => reach[i] = reach[j],
+                    (None, Some(side)) => reach[i] &= !plane.leaving(side, &lanes.d, valid),
+                    (None, None) => {}
                 }
             }
         }

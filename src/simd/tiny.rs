@@ -467,6 +467,20 @@ impl TrianglePlane {
         }
     }
 
+    /// Whether `other` is the same plane as `self` for [`side`](Self::side) and
+    /// [`leaving`](Self::leaving): the same `v0` and the same values of `n` and its term
+    /// bounds (in f64 and f32). Both functions read `n` only through products summed and
+    /// compared strictly with zero or a margin, where a zero's sign changes nothing, so
+    /// equal values give equal answers (two triangles of one quad share their plane).
+    pub fn same_plane(&self, other: &TrianglePlane) -> bool {
+        self.v0 == other.v0
+            && self.n == other.n
+            && self.n_exact == other.n_exact
+            && self.terms == other.terms
+            && self.n32 == other.n32
+            && self.terms32 == other.terms32
+    }
+
     /// The side of the plane `origin` lies on: `Some(1.0)` on the side `n` points to,
     /// `Some(-1.0)` on the other, `Some(0.0)` exactly on it; `None` where the f64 value
     /// is neither exact nor clear of its bound.
@@ -610,13 +624,20 @@ mod tests {
         for case in 0..600 {
             let mut r3 = |s: f32| Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s;
             let (corner, e1, e2) = if case % 2 == 0 {
-                (Vec3::new(-6.0, 9.0, 6.0) + r3(2.0), Vec3::X * 2.0, Vec3::Z * 2.0)
+                (
+                    Vec3::new(-6.0, 9.0, 6.0) + r3(2.0),
+                    Vec3::X * 2.0,
+                    Vec3::Z * 2.0,
+                )
             } else {
                 (r3(8.0) + Vec3::Y * 6.0, r3(4.0), r3(4.0))
             };
             let normal = e1.cross(e2).normalize();
             let q_error = crate::geometry::gamma(32) * (corner.abs() + e1.abs() + e2.abs());
-            let tris = [[corner, corner + e1, corner + e1 + e2], [corner, corner + e1 + e2, corner + e2]];
+            let tris = [
+                [corner, corner + e1, corner + e1 + e2],
+                [corner, corner + e1 + e2, corner + e2],
+            ];
             let p = r3(16.0);
             let p_error = Vec3::splat(1e-6) * (1.0 + p.abs().max_element());
             let n = r3(2.0).normalize_or(Vec3::Y);
@@ -625,7 +646,8 @@ mod tests {
             let rays: Vec<Ray> = (0..TINY_WIDTH)
                 .map(|_| {
                     let point = corner + e1 * unit() + e2 * unit();
-                    let mut r = crate::geometry::spawn_ray_to(p, p_error, n, point, q_error, normal);
+                    let mut r =
+                        crate::geometry::spawn_ray_to(p, p_error, n, point, q_error, normal);
                     r.tmax *= 1.0 + stretch;
                     r
                 })
@@ -644,7 +666,11 @@ mod tests {
                     lanes += ids.len();
                     hits += blocked.count_ones() as usize;
                     culled += skip.count_ones() as usize;
-                    assert_eq!(skip & blocked, 0, "case {case}: skipped lanes the packet test hits");
+                    assert_eq!(
+                        skip & blocked,
+                        0,
+                        "case {case}: skipped lanes the packet test hits"
+                    );
                     for (i, &id) in ids.iter().enumerate() {
                         let ray = &rays[id as usize];
                         let q = RayQuery::new(ray).expect("a valid segment");
@@ -658,6 +684,9 @@ mod tests {
             }
         }
         eprintln!("{culled} of {lanes} lanes skipped, {hits} hits");
-        assert!(culled > lanes / 5 && hits > 100, "{culled} skipped, {hits} hits");
+        assert!(
+            culled > lanes / 5 && hits > 100,
+            "{culled} skipped, {hits} hits"
+        );
     }
 }
