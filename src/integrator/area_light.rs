@@ -46,6 +46,7 @@ use super::sobol::SobolDim;
 use super::tiny_shadow::LaneOccluders;
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
 use crate::simd::lanes3::V3;
+use crate::simd::quad_samples::QuadSamples;
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
 
@@ -119,6 +120,10 @@ pub(crate) fn shade_quads(
     let paths = LanePaths::splat(h.slot, h.weight, h.time);
     let lane_weight = V3::splat(h.weight);
     let base = batch.base.get(k);
+    // The fused path's light samples with the shadow-ray origins computed once per
+    // shading point (`QuadSamples`, `quad_light` bit for bit); the queue path keeps
+    // `quad_light`.
+    let hoisted = quads.occluders.as_ref().and_then(|_| QuadSamples::new(&s));
     for (index, quad) in &quads.lights {
         let mut near = quads.occluders.as_ref().map(|o| o.spheres_near(base, quad));
         // The light points straight into lanes (`u`, `v` padded to 16).
@@ -147,15 +152,11 @@ pub(crate) fn shade_quads(
             } else {
                 (1u32 << left) - 1
             };
-            let sl = quad_light(
-                &s,
-                &h.hl,
-                quad,
-                lane(&points.u, c),
-                lane(&points.v, c),
-                samples as f32,
-                active,
-            );
+            let (u, v) = (lane(&points.u, c), lane(&points.v, c));
+            let sl = match &hoisted {
+                Some(fast) => fast.lanes(&s, &h.hl, quad, u, v, samples as f32, active),
+                None => quad_light(&s, &h.hl, quad, u, v, samples as f32, active),
+            };
             let Some(occluders) = &quads.occluders else {
                 push_shadow(
                     &mut sinks.shadow[*index as usize],
