@@ -159,6 +159,9 @@ pub struct NearSpheres {
     all: u32,
     opaque: u32,
     glass: u32,
+    /// Bit `k`: triangle `k`'s plane cull may skip some of these segments
+    /// (`TrianglePlane::may_cull`); it is not tried for the others.
+    planes: u32,
     /// The last shared origin seen and the side of each triangle's plane it lies on
     /// (`TrianglePlane::side`, computed once per shading point and light, not per
     /// lane group).
@@ -309,7 +312,17 @@ impl LaneOccluders {
                 })
         };
         let (oi, gi) = &self.glass_index;
+        let corners = [
+            q.corner,
+            q.corner + q.edge1,
+            q.corner + q.edge1 + q.edge2,
+            q.corner + q.edge2,
+        ];
+        let planes = self.planes.iter().enumerate().fold(0u32, |b, (k, p)| {
+            b | (p.may_cull(base, &corners) as u32) << (k & 31)
+        });
         NearSpheres {
+            planes,
             sides: (None, [None; TINY_MAX_PRIMITIVES]),
             all,
             opaque: self.glass.as_ref().map_or(0, |g| bits(&g.0, oi)),
@@ -356,9 +369,11 @@ impl LaneOccluders {
             if near_spheres.sides.0 != Some(o) {
                 let mut sides = [None; TINY_MAX_PRIMITIVES];
                 for (i, (plane, twin)) in self.planes.iter().zip(&self.twins).enumerate() {
+                    let tried = near_spheres.planes >> (i & 31) & 1 == 1;
                     sides[i] = match *twin {
                         Some(j) => sides[j],
-                        None => plane.side(o),
+                        None if tried => plane.side(o),
+                        None => None,
                     };
                 }
                 near_spheres.sides = (Some(o), sides);

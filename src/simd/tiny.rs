@@ -481,6 +481,18 @@ impl TrianglePlane {
             && self.terms32 == other.terms32
     }
 
+    /// Whether the plane cull ([`leaving`](Self::leaving)) may skip any segment from
+    /// about `from` to a point of the convex hull of `to`: false where `from` is off
+    /// the plane and every point of `to` lies towards the plane from it or level (all
+    /// such segments approach the plane: a quad light's own plane, seen from below it).
+    /// A heuristic in f32, which only decides whether the cull is tried: skipping the
+    /// cull leaves the triangle test to answer, which it does exactly.
+    pub fn may_cull(&self, from: Vec3, to: &[Vec3]) -> bool {
+        let n = Vec3::from_array(self.n32);
+        let at = n.dot(from - self.v0);
+        at == 0.0 || !to.iter().all(|&c| n.dot(c - from) * at.signum() <= 0.0)
+    }
+
     /// The side of the plane `origin` lies on: `Some(1.0)` on the side `n` points to,
     /// `Some(-1.0)` on the other, `Some(0.0)` exactly on it; `None` where the f64 value
     /// is neither exact nor clear of its bound.
