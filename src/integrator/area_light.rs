@@ -36,6 +36,24 @@
 //! before them, gone after; what remains is `quad_light`'s arithmetic, the sphere
 //! lanes and the light points' draws, `fill_2d_split` ~10 %). Not done: a BVH scene
 //! (area_lights.toml) keeps the queue, unchanged (images identical).
+//!
+//! Then (branch `area4`; images byte-identical on whitted_area64, whitted_base,
+//! whitted_blur16, bunny, area_lights, dof_area): counters showed every lane group
+//! running the full triangle test on both of the light's own triangles (the segments
+//! end just short of them), now skipped by an exact depth test where the light is seen
+//! along its axis (`TinyGroup::beyond`); a quad's two triangles share one plane test
+//! (`TrianglePlane::same_plane`), which is not tried for the light's own plane
+//! (`may_cull`); each sphere's clearance is computed once per point (not once per
+//! list); the shadow-ray origins come from two computed once per shading point
+//! (`simd::quad_samples`); `next_f32` skips `mix64`'s last step (same top bits).
+//! whitted_area64 at 256x192, callgrind, whole process: 1296 M -> 1074 M instructions
+//! (-17 %; the depth test alone -10 %). 1 thread, 5 runs interleaved with the previous
+//! binary on a machine loaded 8-11 on 2 cores (only the ratio means anything, min /
+//! median / max ms): render 5807/6436/7188 -> 4786/5595/6241, shade 5558/6129/6794 ->
+//! 4515/5132/5817. Left: `quad_light`'s divisions and square root (bit-exact with the
+//! queue path, so no reciprocal estimates), the light points' draws (`fill_2d_split`,
+//! ~12 %: scalar SplitMix at ~9 instructions per draw, near its floor), the sphere
+//! lanes of points near a sphere and the per-group key and shared-origin masks.
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_split};
