@@ -36,6 +36,24 @@
 //! before them, gone after; what remains is `quad_light`'s arithmetic, the sphere
 //! lanes and the light points' draws, `fill_2d_split` ~10 %). Not done: a BVH scene
 //! (area_lights.toml) keeps the queue, unchanged (images identical).
+//!
+//! Then (branch `area4`; images byte-identical on whitted_area64, whitted_base,
+//! whitted_blur16, bunny, area_lights, dof_area): counters showed every lane group
+//! running the full triangle test on both of the light's own triangles (the segments
+//! end just short of them), now skipped by an exact depth test where the light is seen
+//! along its axis (`TinyGroup::beyond`); a quad's two triangles share one plane test
+//! (`TrianglePlane::same_plane`), which is not tried for the light's own plane
+//! (`may_cull`); each sphere's clearance is computed once per point (not once per
+//! list); the shadow-ray origins come from two computed once per shading point
+//! (`simd::quad_samples`); `next_f32` skips `mix64`'s last step (same top bits).
+//! whitted_area64 at 256x192, callgrind, whole process: 1296 M -> 1074 M instructions
+//! (-17 %; the depth test alone -10 %). 1 thread, 5 runs interleaved with the previous
+//! binary on a machine loaded 8-11 on 2 cores (only the ratio means anything, min /
+//! median / max ms): render 5807/6436/7188 -> 4786/5595/6241, shade 5558/6129/6794 ->
+//! 4515/5132/5817. Left: `quad_light`'s divisions and square root (bit-exact with the
+//! queue path, so no reciprocal estimates), the light points' draws (`fill_2d_split`,
+//! ~12 %: scalar SplitMix at ~9 instructions per draw, near its floor), the sphere
+//! lanes of points near a sphere and the per-group key and shared-origin masks.
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_split};
@@ -46,6 +64,7 @@ use super::sobol::SobolDim;
 use super::tiny_shadow::LaneOccluders;
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
 use crate::simd::lanes3::V3;
+use crate::simd::quad_samples::QuadSamples;
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
 
@@ -119,6 +138,10 @@ pub(crate) fn shade_quads(
     let paths = LanePaths::splat(h.slot, h.weight, h.time);
     let lane_weight = V3::splat(h.weight);
     let base = batch.base.get(k);
+    // The fused path's light samples with the shadow-ray origins computed once per
+    // shading point (`QuadSamples`, `quad_light` bit for bit); the queue path keeps
+    // `quad_light`.
+    let hoisted = quads.occluders.as_ref().and_then(|_| QuadSamples::new(&s));
     for (index, quad) in &quads.lights {
         let mut near = quads.occluders.as_ref().map(|o| o.spheres_near(base, quad));
         // The light points straight into lanes (`u`, `v` padded to 16).
@@ -147,15 +170,11 @@ pub(crate) fn shade_quads(
             } else {
                 (1u32 << left) - 1
             };
-            let sl = quad_light(
-                &s,
-                &h.hl,
-                quad,
-                lane(&points.u, c),
-                lane(&points.v, c),
-                samples as f32,
-                active,
-            );
+            let (u, v) = (lane(&points.u, c), lane(&points.v, c));
+            let sl = match &hoisted {
+                Some(fast) => fast.lanes(&s, &h.hl, quad, u, v, samples as f32, active),
+                None => quad_light(&s, &h.hl, quad, u, v, samples as f32, active),
+            };
             let Some(occluders) = &quads.occluders else {
                 push_shadow(
                     &mut sinks.shadow[*index as usize],

@@ -416,8 +416,15 @@ impl PixelRng {
 
     /// Uniform in `[0, 1)`: the top 24 bits, so every value is exact in f32 and 1.0
     /// can never come out (it would step into the next stratum or pixel).
+    ///
+    /// The top 24 bits of [`mix64`] are those of its value before the last
+    /// `z ^ (z >> 31)` (which changes bits 0..33 only), so that step is left out here
+    /// ([`mix64_top24`]): the same numbers, two operations fewer per draw (the light
+    /// points of whitted_area64 draw ~200 M of them).
+    #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
+        mix64_top24(self.state) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 
     /// `out.len()` successive [`next_f32`](Self::next_f32) draws into `out`.
@@ -441,10 +448,23 @@ impl PixelRng {
 }
 
 /// SplitMix64's output function (Stafford's "Mix13" variant).
-fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+fn mix64(z: u64) -> u64 {
+    let z = mix64_unfinished(z);
     z ^ (z >> 31)
+}
+
+/// [`mix64`] before its last step.
+#[inline(always)]
+fn mix64_unfinished(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb)
+}
+
+/// `mix64(z) >> 40`: bits 40..63 of `z ^ (z >> 31)` are bits 40..63 of `z` (the
+/// shifted value has nothing above bit 32).
+#[inline(always)]
+fn mix64_top24(z: u64) -> u64 {
+    mix64_unfinished(z) >> 40
 }
 
 #[cfg(test)]
@@ -598,6 +618,30 @@ mod tests {
             "gaussian".parse::<FilterKind>().unwrap(),
             FilterKind::Gaussian
         );
+    }
+
+    /// `next_f32` (which leaves out `mix64`'s last step) is the top 24 bits of
+    /// `next_u64` on the same stream, draw for draw, and `fill_f32` is `next_f32`.
+    #[test]
+    fn unit_draws_are_the_top_bits_of_the_full_mix() {
+        for seed in 0..64u64 {
+            let (mut a, mut b, mut c) = (
+                PixelRng::new(seed, 9),
+                PixelRng::new(seed, 9),
+                PixelRng::new(seed, 9),
+            );
+            let mut filled = [0.0f32; 37];
+            c.fill_f32(&mut filled);
+            for f in filled {
+                let x = a.next_f32();
+                let y = (b.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32);
+                assert_eq!(
+                    (x.to_bits(), f.to_bits()),
+                    (y.to_bits(), y.to_bits()),
+                    "seed {seed}"
+                );
+            }
+        }
     }
 
     #[test]

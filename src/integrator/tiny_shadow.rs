@@ -140,7 +140,13 @@ pub struct LaneOccluders {
     triangles: Vec<[Vec3; 3]>,
     /// Their planes: lanes leaving a triangle's plane from its origin's side skip it.
     planes: Vec<TrianglePlane>,
+    /// Per plane, an earlier one that is the same plane (`TrianglePlane::same_plane`:
+    /// the two triangles of a quad), whose side and culled lanes it takes.
+    twins: Vec<Option<usize>>,
     spheres: Vec<(Vec3, f32)>,
+    /// Per sphere of the opaque and of the glass list, its index in `spheres` (the
+    /// lists are parts of it), so that each sphere is tested once per shading point.
+    glass_index: (Vec<Option<usize>>, Vec<Option<usize>>),
     /// Where the sphere set is split: the opaque spheres, the glass spheres and their
     /// transmission (`SphereShadow::Glass`).
     glass: Option<GlassSet>,
@@ -153,6 +159,9 @@ pub struct NearSpheres {
     all: u32,
     opaque: u32,
     glass: u32,
+    /// Bit `k`: triangle `k`'s plane cull may skip some of these segments
+    /// (`TrianglePlane::may_cull`); it is not tried for the others.
+    planes: u32,
     /// The last shared origin seen and the side of each triangle's plane it lies on
     /// (`TrianglePlane::side`, computed once per shading point and light, not per
     /// lane group).
@@ -256,10 +265,27 @@ impl LaneOccluders {
                 } => Some((opaque.to_vec(), glass.to_vec(), transmission)),
             },
         };
+        let planes: Vec<TrianglePlane> = tiny.triangles().iter().map(TrianglePlane::new).collect();
+        let twins = (0..planes.len())
+            .map(|i| (0..i).find(|&j| planes[j].same_plane(&planes[i])))
+            .collect();
+        let spheres = tiny.spheres().to_vec();
+        let index = |list: &[(Vec3, f32)]| {
+            list.iter()
+                .map(|s| spheres.iter().position(|a| a.0 == s.0 && a.1 == s.1))
+                .collect()
+        };
+        let glass_index = glass
+            .as_ref()
+            .map_or((Vec::new(), Vec::new()), |g: &GlassSet| {
+                (index(&g.0), index(&g.1))
+            });
         Some(LaneOccluders {
             triangles: tiny.triangles().to_vec(),
-            planes: tiny.triangles().iter().map(TrianglePlane::new).collect(),
-            spheres: tiny.spheres().to_vec(),
+            planes,
+            twins,
+            spheres,
+            glass_index,
             glass,
         })
     }
@@ -269,16 +295,38 @@ impl LaneOccluders {
     /// [`sphere_clear_of`]); one bit per sphere of the scene's list, of the opaque and
     /// of the glass list.
     pub fn spheres_near(&self, base: Vec3, q: &QuadLight) -> NearSpheres {
-        let bits = |list: &[(Vec3, f32)]| {
-            list.iter().enumerate().fold(0u32, |b, (k, &(c, r))| {
-                b | ((!sphere_clear_of(base, q, c, r)) as u32) << (k & 31)
-            })
+        let near = |&(c, r): &(Vec3, f32)| !sphere_clear_of(base, q, c, r);
+        let all = self
+            .spheres
+            .iter()
+            .enumerate()
+            .fold(0u32, |b, (k, s)| b | (near(s) as u32) << (k & 31));
+        // A listed sphere that is one of `spheres` takes its bit (the same call).
+        let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
+            list.iter()
+                .zip(index)
+                .enumerate()
+                .fold(0u32, |b, (k, (s, i))| {
+                    let n = i.map_or_else(|| near(s), |i| all >> (i & 31) & 1 == 1);
+                    b | (n as u32) << (k & 31)
+                })
         };
+        let (oi, gi) = &self.glass_index;
+        let corners = [
+            q.corner,
+            q.corner + q.edge1,
+            q.corner + q.edge1 + q.edge2,
+            q.corner + q.edge2,
+        ];
+        let planes = self.planes.iter().enumerate().fold(0u32, |b, (k, p)| {
+            b | (p.may_cull(base, &corners) as u32) << (k & 31)
+        });
         NearSpheres {
+            planes,
             sides: (None, [None; TINY_MAX_PRIMITIVES]),
-            all: bits(&self.spheres),
-            opaque: self.glass.as_ref().map_or(0, |g| bits(&g.0)),
-            glass: self.glass.as_ref().map_or(0, |g| bits(&g.1)),
+            all,
+            opaque: self.glass.as_ref().map_or(0, |g| bits(&g.0, oi)),
+            glass: self.glass.as_ref().map_or(0, |g| bits(&g.1, gi)),
         }
     }
 
@@ -315,20 +363,33 @@ impl LaneOccluders {
             same(origin.x, o.x) & same(origin.y, o.y) & same(origin.z, o.z) & valid == valid
         });
         // Per triangle, the valid lanes that may meet it: all but those leaving its
-        // plane from the shared origin's side (`TrianglePlane`).
+        // plane from the shared origin's side (`TrianglePlane`), tried where it may
+        // skip some (`NearSpheres::planes`); below, per key group, also all but those
+        // ending before its corners (`TinyGroup::beyond`: the light's own triangles).
+        //
+        // Measured before `beyond` (counters, whitted_area64 512x384): every lane group
+        // ran the full triangle test on both of the light's triangles (each sample's
+        // segment ends just short of them), the largest part of `shade_quads`.
         let mut reach = [valid; TINY_MAX_PRIMITIVES];
         if let Some(o) = shared {
             if near_spheres.sides.0 != Some(o) {
                 let mut sides = [None; TINY_MAX_PRIMITIVES];
-                for (side, plane) in sides.iter_mut().zip(&self.planes) {
-                    *side = plane.side(o);
+                for (i, (plane, twin)) in self.planes.iter().zip(&self.twins).enumerate() {
+                    let tried = near_spheres.planes >> (i & 31) & 1 == 1;
+                    sides[i] = match *twin {
+                        Some(j) => sides[j],
+                        None if tried => plane.side(o),
+                        None => None,
+                    };
                 }
                 near_spheres.sides = (Some(o), sides);
             }
             let sides = &near_spheres.sides.1;
-            for ((reach, plane), side) in reach.iter_mut().zip(&self.planes).zip(sides) {
-                if let Some(side) = *side {
-                    *reach &= !plane.leaving(side, &lanes.d, valid);
+            for (i, (plane, twin)) in self.planes.iter().zip(&self.twins).enumerate() {
+                match (*twin, sides[i]) {
+                    (Some(j), _) => reach[i] = reach[j],
+                    (None, Some(side)) => reach[i] &= !plane.leaving(side, &lanes.d, valid),
+                    (None, None) => {}
                 }
             }
         }
@@ -346,7 +407,11 @@ impl LaneOccluders {
             for (corners, reach) in self.triangles.iter().zip(reach) {
                 let test = mask & reach & !t;
                 if test != 0 {
-                    t |= g.triangle_blocks(corners, test);
+                    // The light's own triangles, beyond the segments' ends.
+                    let test = test & !g.beyond(corners, test);
+                    if test != 0 {
+                        t |= g.triangle_blocks(corners, test);
+                    }
                 }
             }
             tri |= t;

@@ -23,6 +23,7 @@ pub mod lanes3;
 pub mod left_pack;
 pub mod pow;
 pub mod prefetch;
+pub mod quad_samples;
 pub mod quant;
 pub mod ray_gather;
 pub mod ray_store;

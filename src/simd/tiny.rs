@@ -305,6 +305,32 @@ impl TinyGroup {
         blocked
     }
 
+    /// The lanes of `live` for which the triangle test against `corners` cannot report
+    /// a hit because the triangle lies beyond the end of their segment: every corner's
+    /// depth in the test's sheared space, `sz (corner[kz] - o[kz])` (the test's `az`,
+    /// `bz`, `cz`, computed by the same f32 operations), is at least `tmax` with a
+    /// margin of `2^-20` relative. Skipping them gives the test's own answers
+    /// ([`BEYOND_MARGIN`] says why). The light samples of a quad light seen along its
+    /// normal's axis: the segment stops short of the light (`spawn_ray_to`), and each
+    /// sample's lanes would otherwise run the full test on both of the light's triangles.
+    #[inline(always)]
+    pub fn beyond(&self, corners: &[Vec3; 3], live: u32) -> u32 {
+        let kz = self.shear.kz;
+        let depth = |c: &Vec3| {
+            let a_z = if self.shared {
+                TinyLanes::splat(c[kz] - self.shear.shared_origin[kz])
+            } else {
+                TinyLanes::splat(c[kz]) - self.shear.o[kz]
+            };
+            self.shear.sz * a_z
+        };
+        // Per corner, as `fl(x (1 - 2^-20))` is monotone in `x`: the least depth passes
+        // where all do. A NaN depth fails its comparison and keeps the lane.
+        let margin = TinyLanes::splat(BEYOND_MARGIN);
+        let far = |c: &Vec3| (depth(c) * margin).simd_ge(self.tmax);
+        (far(&corners[0]) & far(&corners[1]) & far(&corners[2])).to_bitmask() & live
+    }
+
     /// Occlusion of the lanes in `live` by `spheres`.
     pub fn any_sphere(&self, spheres: &[(Vec3, f32)], live: u32) -> u32 {
         let mut blocked = 0u32;
@@ -318,6 +344,28 @@ impl TinyGroup {
         blocked
     }
 }
+
+/// `1 - 2^-20`: the factor of [`TinyGroup::beyond`]'s depth test.
+///
+/// Why a lane with `fl(m · BEYOND_MARGIN) >= tmax` (`m` the least of the computed
+/// corner depths `az, bz, cz`) gets no hit from the watertight test, the packet one or
+/// the scalar fallback (`intersect_triangle`, whose f64 edges end in the same f32
+/// `t` formula): a hit needs the three edge values `u, v, w` of one sign (or zero)
+/// and `t = fl(fl(fl(fl(u az) + fl(v bz)) + fl(w cz)) / fl(fl(u + v) + w)) < tmax`.
+/// With `u, v, w >= 0` (the other sign is the same with both signs flipped) every term
+/// of both sums is non-negative, so with `u_r = 2^-24` (no underflow, below) the
+/// numerator is at least `(u az + v bz + w cz)(1 - u_r)^3 >= m (u + v + w)(1 - u_r)^3`,
+/// the denominator at most `(u + v + w)(1 + u_r)^2`, and the rounded quotient at least
+/// `m (1 - u_r)^4 / (1 + u_r)^2 >= m (1 - 6 u_r)`. The test computes
+/// `fl(m (1 - 16 u_r)) <= m (1 - 16 u_r)(1 + u_r) < m (1 - 6 u_r) <= t`, so
+/// `t >= tmax`: no hit. `m > 0` follows from the test where `tmax > 0`; where
+/// `tmax = 0` no `t` lies in `(0, tmax)` anyway. Underflow: a hit also needs
+/// `t > δt >= 3 δE maxZt |1/det|`, with `δE` at least `2^-27` of the f32 edge bound
+/// (`2 err::EDGE max_x max_y` and more), so the edge values of a hit sum to far above
+/// the subnormal range wherever the triangle's sheared coordinates are above about
+/// `2^-30` of the scene's unit; the relative bounds then hold for the largest term and
+/// the subnormal rest changes the sums by at most `2^-149` each.
+pub const BEYOND_MARGIN: f32 = 1.0 - 1.0 / (1u32 << 20) as f32;
 
 /// Per-lane closest hits of a [`TinyGroup`].
 pub struct TinyHits {
@@ -421,6 +469,32 @@ impl TrianglePlane {
             n32: n.map(|x| x as f32),
             terms32: terms.map(|x| x as f32),
         }
+    }
+
+    /// Whether `other` is the same plane as `self` for [`side`](Self::side) and
+    /// [`leaving`](Self::leaving): the same `v0` and the same values of `n` and its term
+    /// bounds (in f64 and f32). Both functions read `n` only through products summed and
+    /// compared strictly with zero or a margin, where a zero's sign changes nothing, so
+    /// equal values give equal answers (two triangles of one quad share their plane).
+    pub fn same_plane(&self, other: &TrianglePlane) -> bool {
+        self.v0 == other.v0
+            && self.n == other.n
+            && self.n_exact == other.n_exact
+            && self.terms == other.terms
+            && self.n32 == other.n32
+            && self.terms32 == other.terms32
+    }
+
+    /// Whether the plane cull ([`leaving`](Self::leaving)) may skip any segment from
+    /// about `from` to a point of the convex hull of `to`: false where `from` is off
+    /// the plane and every point of `to` lies towards the plane from it or level (all
+    /// such segments approach the plane: a quad light's own plane, seen from below it).
+    /// A heuristic in f32, which only decides whether the cull is tried: skipping the
+    /// cull leaves the triangle test to answer, which it does exactly.
+    pub fn may_cull(&self, from: Vec3, to: &[Vec3]) -> bool {
+        let n = Vec3::from_array(self.n32);
+        let at = n.dot(from - self.v0);
+        at == 0.0 || !to.iter().all(|&c| n.dot(c - from) * at.signum() <= 0.0)
     }
 
     /// The side of the plane `origin` lies on: `Some(1.0)` on the side `n` points to,
@@ -549,5 +623,86 @@ mod tests {
         }
         eprintln!("{culled} of {lanes} lanes skipped, {exact_on_plane} origins exactly on a plane");
         assert!(culled > 3_000 && exact_on_plane > 1_000);
+    }
+
+    /// Every lane that [`TinyGroup::beyond`] lets skip a triangle is one both the
+    /// packet test (`triangle_blocks`) and the scalar test ([`intersect_triangle`])
+    /// report no hit for: shadow segments built as the renderer builds them
+    /// (`spawn_ray_to`) from random points towards random points of random quad lights
+    /// (axis-aligned like the Whitted rows' light, and tilted), tested against the
+    /// light's own two triangles, with the segments' ends also pushed towards and past
+    /// the light by a few ulps to a few hundred (where the margin is what decides).
+    #[test]
+    fn beyond_culled_lanes_are_misses_of_both_tests() {
+        let mut next = xorshift64(0x51_7cc1_b727_220a);
+        let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32;
+        let (mut culled, mut lanes, mut hits) = (0usize, 0usize, 0usize);
+        for case in 0..600 {
+            let mut r3 = |s: f32| Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s;
+            let (corner, e1, e2) = if case % 2 == 0 {
+                (
+                    Vec3::new(-6.0, 9.0, 6.0) + r3(2.0),
+                    Vec3::X * 2.0,
+                    Vec3::Z * 2.0,
+                )
+            } else {
+                (r3(8.0) + Vec3::Y * 6.0, r3(4.0), r3(4.0))
+            };
+            let normal = e1.cross(e2).normalize();
+            let q_error = crate::geometry::gamma(32) * (corner.abs() + e1.abs() + e2.abs());
+            let tris = [
+                [corner, corner + e1, corner + e1 + e2],
+                [corner, corner + e1 + e2, corner + e2],
+            ];
+            let p = r3(16.0);
+            let p_error = Vec3::splat(1e-6) * (1.0 + p.abs().max_element());
+            let n = r3(2.0).normalize_or(Vec3::Y);
+            // 0: as built; 1..: the end moved by `stretch` relative.
+            let stretch = [0.0f32, -4.0, 1.0, 4.0, 16.0, 64.0, 256.0][case % 7] * f32::EPSILON;
+            let rays: Vec<Ray> = (0..TINY_WIDTH)
+                .map(|_| {
+                    let point = corner + e1 * unit() + e2 * unit();
+                    let mut r =
+                        crate::geometry::spawn_ray_to(p, p_error, n, point, q_error, normal);
+                    r.tmax *= 1.0 + stretch;
+                    r
+                })
+                .collect();
+            for key in 0..6 {
+                let ids: Vec<u32> = (0..rays.len() as u32)
+                    .filter(|&i| shear_key(&rays[i as usize]) == Some(key))
+                    .collect();
+                if ids.is_empty() {
+                    continue;
+                }
+                let g = TinyGroup::new(&rays, &ids, key);
+                for c in &tris {
+                    let skip = g.beyond(c, g.mask);
+                    let blocked = g.triangle_blocks(c, g.mask);
+                    lanes += ids.len();
+                    hits += blocked.count_ones() as usize;
+                    culled += skip.count_ones() as usize;
+                    assert_eq!(
+                        skip & blocked,
+                        0,
+                        "case {case}: skipped lanes the packet test hits"
+                    );
+                    for (i, &id) in ids.iter().enumerate() {
+                        let ray = &rays[id as usize];
+                        let q = RayQuery::new(ray).expect("a valid segment");
+                        let hit = intersect_triangle(&q, c[0], c[1], c[2], ray.tmax);
+                        assert!(
+                            skip >> i & 1 == 0 || hit.is_none(),
+                            "case {case}: {ray:?} skipped {c:?} but the scalar test hits it"
+                        );
+                    }
+                }
+            }
+        }
+        eprintln!("{culled} of {lanes} lanes skipped, {hits} hits");
+        assert!(
+            culled > lanes / 5 && hits > 100,
+            "{culled} skipped, {hits} hits"
+        );
     }
 }
