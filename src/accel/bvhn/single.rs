@@ -1,5 +1,27 @@
 //! Single-ray traversal: closest hit, any hit and the filtered query, one N-wide slab
 //! test per node.
+//!
+//! Against Embree 3.13.5's one-ray BVH8 kernel on AVX2 (`bvh8-single` vs `rtcIntersect1`
+//! diffuse 0.81x in README's run; `perf annotate` of `closest_from`, bunny, 2026-11-24):
+//! - Node test: ours is 6 plane loads, 6 `vsubps`, 6 `vmulps`, 3 `vmaxps` and 3
+//!   `vminps` (with `tmin`, `tmax`), `vcmpleps`, `vmovmskps`: 26 instructions, the
+//!   reciprocals read from the stack (the kernel needs more than AVX2's 16 `ymm`
+//!   registers). Embree's default (non-robust, what its harness runs) is one FMA per
+//!   plane, `lower * rdir - org * rdir`, the loads folded: about 14. Embree's robust
+//!   mode does what we do (subtract, multiply, far planes scaled by `1 + 2 gamma(3)`).
+//!   An FMA form must widen the interval by an absolute term: with `c = fma(p, inv,
+//!   -RN(o * inv))`, `|c - (p - o) inv| <= gamma(2) |(p - o) inv| + u (1 + u) |o inv|`,
+//!   so the slack grows with the origin's distance from the world origin, unlike Ize's
+//!   relative scale; not built (no time to state and test the bound).
+//! - Child order: the same cases as Embree's `BVHNNodeTraverser1Hit` (one child: no
+//!   stack; two: one compare; more: push and sort). The stack keeps its length in
+//!   memory and bounds-checks each push (`cmp`/`ja`), Embree's a raw pointer; hot spots
+//!   are elsewhere (the branch on the child mask and the first plane load, 7 % each).
+//! - Leaf: `triangle4_closest` runs about 85 vector instructions before its all-miss
+//!   exit (corners translated and sheared, three edge functions, their error bound,
+//!   signs); Embree's Moeller-Trumbore on `Triangle4` (precomputed `v0, e1, e2, Ng`)
+//!   about 30. Precomputed edges do not serve the watertight test (Woop et al.,
+//!   JCGT 2013): it translates each corner to the ray origin before the shear.
 
 use super::node::{NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::stack::{SINGLE_STACK, Stack};
