@@ -25,6 +25,7 @@ pub mod pow;
 pub mod prefetch;
 pub mod quant;
 pub mod ray_store;
+pub mod shadow_cull;
 pub mod specular;
 pub mod surface;
 pub mod tiny;
