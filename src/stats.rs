@@ -82,9 +82,12 @@ pub struct StageTimes {
     pub camera: f64,
     /// Closest hits of camera rays.
     pub trace: f64,
-    /// Shading of every hit, emitting shadow and child rays into their queues.
+    /// Shading of every hit, emitting shadow and child rays into their queues. In a
+    /// tiny scene it also settles the shadow rays of point, directional and quad lights
+    /// (`integrator::point_shadow`, `integrator::area_light`), which then leave
+    /// `shadow` and `area_shadow` at zero.
     pub shade: f64,
-    /// Occlusion of shadow rays towards point and directional lights.
+    /// Occlusion of shadow rays towards point and directional lights (queued ones).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shadow: Option<f64>,
     /// Occlusion of shadow rays towards points on area lights.

@@ -24,6 +24,7 @@ mod options;
 mod output;
 pub mod path_keys;
 pub mod pixel_filter;
+pub(crate) mod point_shadow;
 pub mod queues;
 pub mod recursive;
 pub mod region;

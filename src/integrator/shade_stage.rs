@@ -23,6 +23,7 @@
 use super::area_light::{LightPoints, QuadLights, ShadingPoint, shade_quads};
 use super::hit_batch::HitBatch;
 use super::path_keys::child_path;
+use super::point_shadow::{PointOccluders, settle_and_sum};
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shader::{ChildKind, Emitted, Shader};
 use super::tiny_shadow::LaneOccluders;
@@ -74,6 +75,9 @@ pub(crate) struct LaneShading {
     /// `(light, wi, irradiance)`: `wi` towards the light, as the scalar shader's.
     directional: Vec<(u32, Vec3, Vec3)>,
     quads: QuadLights,
+    /// Where set, the point and directional lights' shadow rays are settled in the
+    /// shading lanes instead of queued (`point_shadow`).
+    point_occluders: Option<PointOccluders>,
 }
 
 impl LaneShading {
@@ -114,6 +118,7 @@ impl LaneShading {
             points,
             directional,
             quads,
+            point_occluders: None,
         })
     }
 
@@ -121,6 +126,14 @@ impl LaneShading {
     /// of queueing them (`area_light`).
     pub fn with_area_occluders(mut self, occluders: Option<LaneOccluders>) -> LaneShading {
         self.quads.occluders = occluders;
+        self
+    }
+
+    /// Settles the point and directional lights' shadow rays in the shading lanes with
+    /// `occluders` where given, and sums their contributions there with the local
+    /// radiance, instead of queueing them (`point_shadow`).
+    pub fn with_point_occluders(mut self, occluders: Option<PointOccluders>) -> LaneShading {
+        self.point_occluders = occluders;
         self
     }
 }
@@ -401,14 +414,39 @@ fn shade_group_lanes(
         } else {
             V3::splat(m.emission)
         };
-        let [lx, ly, lz] = {
-            let l = weight.times(local);
-            [l.x, l.y, l.z].map(|p| p.to_array())
-        };
-        for (i, &slot) in paths.slot[..n].iter().enumerate() {
-            sinks.acc[slot as usize] += Vec3::new(lx[i], ly[i], lz[i]);
+        let local = weight.times(local);
+        let fused = lanes.point_occluders.as_ref().filter(|_| lit);
+        if let Some(occluders) = fused {
+            // The local radiance and every point and directional light's unblocked
+            // term summed in the hit's lane, then added to its camera sample once
+            // (`point_shadow`: the same terms, another order).
+            let mut sum = local;
+            for &(_, position, intensity) in &lanes.points {
+                let sl = point_light(&s, &hl, position, intensity, active);
+                settle_and_sum(
+                    occluders,
+                    &sl,
+                    Some(position),
+                    weight,
+                    &mut sum,
+                    &mut sinks.rays,
+                );
+            }
+            for &(_, wi, irradiance) in &lanes.directional {
+                let sl = directional_light(&s, &hl, wi, irradiance, active);
+                settle_and_sum(occluders, &sl, None, weight, &mut sum, &mut sinks.rays);
+            }
+            let [sx, sy, sz] = [sum.x, sum.y, sum.z].map(|p| p.to_array());
+            for (i, &slot) in paths.slot[..n].iter().enumerate() {
+                sinks.acc[slot as usize] += Vec3::new(sx[i], sy[i], sz[i]);
+            }
+        } else {
+            let [lx, ly, lz] = [local.x, local.y, local.z].map(|p| p.to_array());
+            for (i, &slot) in paths.slot[..n].iter().enumerate() {
+                sinks.acc[slot as usize] += Vec3::new(lx[i], ly[i], lz[i]);
+            }
         }
-        if lit {
+        if lit && fused.is_none() {
             for &(index, position, intensity) in &lanes.points {
                 let sl = point_light(&s, &hl, position, intensity, active);
                 let q = &mut sinks.shadow[index as usize];

@@ -43,6 +43,7 @@ use super::RenderOutput;
 use super::camera_packets::CameraStaging;
 use super::camera_rays::{CameraSampler, SamplePlan};
 use super::pixel_filter::{TileOut, resolve_pixels};
+use super::point_shadow::PointOccluders;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
 use super::shader::{ChildKind, Emitted, Shader};
@@ -64,8 +65,12 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
     let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     // In a tiny scene the quad lights' samples are settled where they are generated
     // (`area_light`), not queued for the area-shadow stage.
-    let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment)
-        .map(|l| l.with_area_occluders(LaneOccluders::new(accel, filter.as_ref())));
+    // Likewise the point and directional lights' shadow rays, in the shading lanes
+    // (`point_shadow`): their queues stay empty, and the `shadow` stage with them.
+    let lanes = LaneShading::new(scene, SamplePlan::new(scene, opts).environment).map(|l| {
+        l.with_area_occluders(LaneOccluders::new(accel, filter.as_ref()))
+            .with_point_occluders(PointOccluders::new(accel, filter.as_ref()))
+    });
     render_tiles(
         scene,
         opts,

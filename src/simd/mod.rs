@@ -27,6 +27,7 @@ pub mod quad_samples;
 pub mod quant;
 pub mod ray_gather;
 pub mod ray_store;
+pub mod shadow_cull;
 pub mod specular;
 pub mod surface;
 pub mod tiny;

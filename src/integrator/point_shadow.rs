@@ -1,0 +1,573 @@
+//! The shadow rays of point and directional lights in a tiny scene settled in the lanes
+//! that build them ([`PointOccluders`]): the sixteen shadow rays of a lane group of
+//! shading points towards one light are tested against the scene's few primitives
+//! right away (`shade_stage`), glass transmittance included, and their contributions
+//! summed in those lanes; no shadow queue for those lights.
+//!
+//! Why: queued, each ray became a 52-byte `Ray` + slot + contribution written and read
+//! back, dealt into shear-key bins (`TinyScene::occluder_groups`), gathered into lanes
+//! again, tested, and added to its camera sample one by one (perf, whitted_base, 1
+//! thread, self time: `push_shadow` 2.6 %, `occluder_groups` and its closure 4.8 %,
+//! `trace_shadows` 2.0 %, on top of `any_triangle` 4.0 % and `any_sphere` 2.4 %).
+//! The same change for quad lights is `area_light` + `tiny_shadow::LaneOccluders`.
+//!
+//! Exactness: each lane gets the queue path's answer (`tiny_shadow::TinyShadow`, or
+//! `SceneAccel::any_hit_batch` through the tiny scene where no shadow filter is on) bit
+//! for bit: the same lane kernels (`TinyGroup::triangle_blocks` per shear key,
+//! `sphere_lanes`, [`settle_gathered`]) on the same ray fields, a lane's answer
+//! depending on its ray alone; invalid rays untested and unblocked, as
+//! `TinyScene::for_each_group` leaves them; the glass factor multiplied in once per
+//! crossing. Two culls skip tests that cannot find a hit (`simd::shadow_cull`, where
+//! each argument is stated): a lane leaving an axis-aligned triangle's plane from its
+//! origin's side (exact f32 comparisons), and a sphere clear of the group's segments
+//! (towards a point light only) by a margin ten times the sphere test's root error.
+//!
+//! The sums change order: the queue path added the unblocked contributions after the
+//! wave was shaded, light by light, one at a time; here the local radiance and every
+//! point and directional light's term of a hit are summed in its lane and added to its
+//! camera sample once. Terms are the same f32 values (`contribution * weight *
+//! factor`, the same products), all non-negative, so each order's sum is within
+//! `γ_{N-1}` of the exact sum of the `N` terms of a camera sample (Higham, Accuracy
+//! and Stability of Numerical Algorithms, 2nd ed., §4.2: any summation order), and the
+//! two within `2 γ_N` relative of each other. (A camera sample whose wave holds one
+//! hit adds `local + c0 + c1` in the same order either way: most sums stay bit-equal.)
+//!
+//! Measured (1 thread, AVX2, `--stats-json`, interleaved with the queue-path binary on
+//! a machine loaded ~11 on 2 cores by other builds, so only the ratios mean anything;
+//! render min/median/max ms): whitted_base 1018/1216/1512 -> 952/1079/1387 (7 runs),
+//! aa3x3 10025/14732/18238 -> 8718/13081/15842, whitted_blur16 14520/17258/18471 ->
+//! 14332/15046/15750 (5 runs each); ray counts equal; images byte-identical but for
+//! one pixel by one in whitted_blur16 and whitted_area64. Not separated: the two culls'
+//! share (no quiet machine in this session).
+
+use super::shadow::ShadowFilter;
+use super::tiny_shadow::{LaneSettled, SphereShadow};
+use crate::accel::{Occluder, SceneAccel, TINY_MAX_PRIMITIVES};
+use crate::simd::direct_light::ShadowLanes;
+use crate::simd::glass_shadow::settle_gathered;
+use crate::simd::kernels::{RayLanes, sphere_lanes};
+use crate::simd::lanes3::V3;
+use crate::simd::shadow_cull::{AxisPlane, origin_ball, sphere_clear};
+use crate::simd::tiny::{TinyGroup, lane_shear_keys};
+use crate::simd::{Lanes, Packet};
+use glam::Vec3;
+
+/// The opaque spheres, the glass spheres and the glass's transmission.
+type GlassSet = (Vec<(Vec3, f32)>, Vec<(Vec3, f32)>, Vec3);
+
+/// An owned copy of a tiny scene's primitives for settling the shadow rays of point and
+/// directional lights in the shading lanes (see the module).
+pub struct PointOccluders {
+    triangles: Vec<[Vec3; 3]>,
+    /// Per triangle, its plane where axis-aligned.
+    planes: Vec<Option<AxisPlane>>,
+    spheres: Vec<(Vec3, f32)>,
+    /// Where the sphere set is split: opaque spheres, glass spheres, transmission.
+    glass: Option<GlassSet>,
+}
+
+impl PointOccluders {
+    /// `Some` where the queue path (`wavefront::trace_shadows`) settles the shadow
+    /// rays through the tiny scene alone: its batch queries go through the
+    /// `TinyScene` (no moving geometry, instances or planes), and either no ray needs
+    /// a second query (no `filter`) or the filter has a `tiny_pass`. The same
+    /// conditions as `LaneOccluders::new`.
+    pub fn new(accel: &SceneAccel, filter: Option<&ShadowFilter>) -> Option<PointOccluders> {
+        let tiny = accel.tiny.as_ref()?;
+        if accel.has_sets_from(Occluder::Moving) {
+            return None;
+        }
+        let glass = match filter {
+            None => None,
+            Some(f) => match f.tiny_pass(accel)?.spheres {
+                SphereShadow::Opaque => None,
+                SphereShadow::Glass {
+                    opaque,
+                    glass,
+                    transmission,
+                } => Some((opaque.to_vec(), glass.to_vec(), transmission)),
+            },
+        };
+        Some(PointOccluders {
+            triangles: tiny.triangles().to_vec(),
+            planes: tiny.triangles().iter().map(AxisPlane::of).collect(),
+            spheres: tiny.spheres().to_vec(),
+            glass,
+        })
+    }
+
+    /// Settles the shadow rays of the set lanes of `s` (`origin + t dir`, `t` in
+    /// `(0, tmax)`); `light` is the point they all end at (a point light's position),
+    /// `None` for a directional light (unbounded rays: no sphere cull).
+    #[inline(always)]
+    pub fn settle(&self, s: &ShadowLanes, light: Option<Vec3>) -> LaneSettled {
+        let one = V3::splat(Vec3::ONE);
+        let live = s.mask & 0xffff;
+        let lanes = RayLanes {
+            o: [s.origin.x, s.origin.y, s.origin.z],
+            d: [s.dir.x, s.dir.y, s.dir.z],
+            tmin: Packet::splat(0.0),
+        };
+        let tmax = s.tmax;
+        let keys = lane_shear_keys(&lanes, tmax);
+        let valid = keys.iter().fold(0, |a, &k| a | k) & live;
+        if valid == 0 {
+            // Nothing tested: every live lane passes unblocked (invalid rays).
+            return LaneSettled {
+                pass: live,
+                factor: one,
+                settled: 0,
+            };
+        }
+        // Per triangle, the valid lanes that may meet it.
+        let mut reach = [valid; TINY_MAX_PRIMITIVES];
+        for (reach, plane) in reach.iter_mut().zip(&self.planes) {
+            if let Some(p) = plane {
+                *reach &= !p.leaving(&s.origin, &s.dir, valid);
+            }
+        }
+        let n = self.triangles.len().min(TINY_MAX_PRIMITIVES);
+        let any_reach = reach[..n].iter().fold(0, |a, &r| a | r);
+        let mut tri = 0u32;
+        if any_reach != 0 {
+            for (key, &bits) in keys.iter().enumerate() {
+                let mask = bits & any_reach;
+                if mask == 0 {
+                    continue;
+                }
+                let g = TinyGroup::from_lanes(key, lanes, tmax, mask);
+                let mut t = 0;
+                for (corners, reach) in self.triangles.iter().zip(reach) {
+                    let test = mask & reach & !t;
+                    if test != 0 {
+                        t |= g.triangle_blocks(corners, test);
+                    }
+                }
+                tri |= t;
+            }
+        }
+        let rest = valid & !tri;
+        if rest == 0 || self.spheres.is_empty() {
+            return LaneSettled {
+                pass: live & !tri,
+                factor: one,
+                settled: 0,
+            };
+        }
+        // The spheres near the remaining lanes' segments (all for a directional light).
+        let near = |list: &[(Vec3, f32)]| -> u32 {
+            match light {
+                Some(l) => {
+                    let (g, rho) = origin_ball(&s.origin, rest);
+                    list.iter().enumerate().fold(0u32, |b, (k, &(c, r))| {
+                        b | ((!sphere_clear(l, g, rho, c, r)) as u32) << (k & 31)
+                    })
+                }
+                None => u32::MAX,
+            }
+        };
+        let all = near(&self.spheres);
+        let mut sph = 0u32;
+        for (k, &(center, radius)) in self.spheres.iter().enumerate() {
+            let test = rest & !sph;
+            if all >> (k & 31) & 1 == 1 && test != 0 {
+                sph |= sphere_lanes(&lanes, center, radius, tmax, test).1;
+            }
+        }
+        let Some((opaque, glass, transmission)) = &self.glass else {
+            return LaneSettled {
+                pass: live & !(tri | sph),
+                factor: one,
+                settled: 0,
+            };
+        };
+        if sph == 0 {
+            return LaneSettled {
+                pass: live & !tri,
+                factor: one,
+                settled: 0,
+            };
+        }
+        let pick = |list: &[(Vec3, f32)]| {
+            let bits = near(list);
+            let mut out = [(Vec3::ZERO, 0.0f32); TINY_MAX_PRIMITIVES];
+            let mut n = 0;
+            for (k, s) in list.iter().enumerate() {
+                if bits >> (k & 31) & 1 == 1 {
+                    out[n & 7] = *s;
+                    n += 1;
+                }
+            }
+            (out, n.min(TINY_MAX_PRIMITIVES))
+        };
+        let (o, no) = pick(opaque);
+        let (g, ng) = pick(glass);
+        let (blocked, counts) = settle_gathered(&lanes, tmax, sph, &o[..no], &g[..ng]);
+        let factor = glass_factor(counts, *transmission);
+        let zero = Packet::splat(0.0);
+        let dark = factor.x.simd_eq(zero) & factor.y.simd_eq(zero) & factor.z.simd_eq(zero);
+        LaneSettled {
+            pass: live & !tri & !blocked & !dark.to_bitmask(),
+            factor,
+            settled: sph,
+        }
+    }
+}
+
+/// `transmission` multiplied in `counts[i]` times in lane `i`, starting from one: the
+/// same products in the same order as `ShadowFilter::glass_factor`'s scalar loop.
+#[inline(always)]
+fn glass_factor(counts: [u32; 16], transmission: Vec3) -> V3 {
+    let most = counts.iter().max().copied().unwrap_or(0);
+    let counts = Packet::new(counts.map(|c| c as f32));
+    let tr = V3::splat(transmission);
+    let mut factor = V3::splat(Vec3::ONE);
+    for k in 0..most {
+        let more = counts.simd_gt(Packet::splat(k as f32));
+        factor = V3::select(more, factor.times(tr), factor);
+    }
+    factor
+}
+
+/// Settles the lanes of `s` with `occluders` and adds what reaches the light to `sum`
+/// (`contribution * weight * factor`, the queue path's products): the ray counts as
+/// the queue path counts them (`shadow` per live lane, `transmitted_shadow` per lane
+/// settled through glass). Returns the lanes that added a term.
+#[inline(always)]
+pub(crate) fn settle_and_sum(
+    occluders: &PointOccluders,
+    s: &ShadowLanes,
+    light: Option<Vec3>,
+    weight: V3,
+    sum: &mut V3,
+    rays: &mut crate::stats::RayCounts,
+) -> u32 {
+    let live = s.mask & 0xffff;
+    if live == 0 {
+        return 0;
+    }
+    rays.shadow += live.count_ones() as u64;
+    let settled = occluders.settle(s, light);
+    rays.transmitted_shadow += settled.settled.count_ones() as u64;
+    if settled.pass == 0 {
+        return 0;
+    }
+    let c = s.contribution.times(weight).times(settled.factor);
+    let pass = <Packet as Lanes>::mask_from_bits(settled.pass);
+    *sum = sum.plus(V3::select(pass, c, V3::splat(Vec3::ZERO)));
+    settled.pass
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{AccelKind, BatchScratch, TinyScratch};
+    use crate::geometry::gamma;
+    use crate::integrator::RenderOptions;
+    use crate::integrator::camera_rays::SamplePlan;
+    use crate::integrator::queues::{PerChildKind, RayQueue, ShadowQueue};
+    use crate::integrator::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
+    use crate::integrator::shader::{ChildKind, Emitted, Shader};
+    use crate::scene::{Camera, Light, Material, Scene, SceneBuilder};
+    use crate::stats::{EffectSamplesDrawn, RayCounts};
+
+    /// A tiny scene of the Whitted rows' kind: an axis-aligned floor quad, a tilted
+    /// triangle (no axis plane: always tested), a mirror, a glass and a small opaque
+    /// sphere; two point lights, one low enough that its rays graze the spheres, and a
+    /// directional light.
+    fn scene() -> Scene {
+        let mut b = SceneBuilder::new();
+        let floor = b.add_material(Material {
+            specular: Vec3::splat(0.3),
+            shininess: 40.0,
+            ..Material::diffuse("floor", Vec3::new(0.8, 0.6, 0.4))
+        });
+        let chrome = b.add_material(Material {
+            diffuse: Vec3::splat(0.1),
+            specular: Vec3::splat(0.6),
+            shininess: 200.0,
+            ..Material::mirror("chrome", Vec3::splat(0.8))
+        });
+        let glass = b.add_material(Material {
+            transmission: Vec3::new(0.9, 0.7, 0.5),
+            ..Material::glass("glass", 1.5)
+        });
+        b.add_quad(
+            Vec3::new(-12.0, 0.0, -12.0),
+            Vec3::new(0.0, 0.0, 24.0),
+            Vec3::new(24.0, 0.0, 0.0),
+            floor,
+        );
+        b.add_triangle(
+            Vec3::new(2.5, 0.0, 1.5),
+            Vec3::new(4.0, 2.5, 0.5),
+            Vec3::new(3.0, 0.2, -0.5),
+            floor,
+        );
+        b.add_sphere(Vec3::new(1.1, 1.3, -1.4), 1.3, chrome);
+        b.add_sphere(Vec3::new(-0.9, 1.0, 1.0), 1.0, glass);
+        b.add_sphere(Vec3::new(-2.5, 0.4, -0.5), 0.4, floor);
+        b.add_light(Light::Point {
+            position: Vec3::new(-5.0, 9.0, 7.0),
+            intensity: Vec3::splat(60.0),
+        });
+        b.add_light(Light::Point {
+            position: Vec3::new(4.0, 1.5, 3.0),
+            intensity: Vec3::splat(20.0),
+        });
+        b.add_light(Light::Directional {
+            direction: Vec3::new(0.4, -1.0, -0.3),
+            irradiance: Vec3::splat(0.7),
+        });
+        b.camera = Some(Camera {
+            eye: Vec3::new(0.0, 3.0, 9.0),
+            target: Vec3::new(0.0, 0.5, 0.0),
+            up: Vec3::Y,
+            vfov_deg: 75.0,
+        });
+        b.finish().expect("the test scene")
+    }
+
+    fn sinks(scene: &Scene, slots: usize) -> Sinks {
+        Sinks {
+            acc: vec![Vec3::ZERO; slots],
+            slot_pixel: (0..slots as u64).collect(),
+            next: PerChildKind::default(),
+            shadow: (0..scene.lights.len())
+                .map(|_| ShadowQueue::default())
+                .collect(),
+            area: scene.lights.iter().map(Light::is_area).collect(),
+            emitted: Emitted::default(),
+            rays: RayCounts::default(),
+            drawn: EffectSamplesDrawn::default(),
+        }
+    }
+
+    /// The queue path's answer for every ray of `rays` (`wavefront::trace_shadows` for
+    /// a tiny scene): the `TinyShadow` pass where a filter is on, else the tiny
+    /// scene's occlusion batch.
+    fn queue_transmittance(
+        accel: &SceneAccel,
+        filter: Option<&ShadowFilter>,
+        rays: &[crate::geometry::Ray],
+        counts: &mut RayCounts,
+    ) -> Vec<Vec3> {
+        let mut t = Vec::new();
+        if let Some(pass) = filter.and_then(|f| f.tiny_pass(accel)) {
+            pass.transmittance_batch(rays, &mut t, &mut TinyScratch::default(), counts);
+        } else {
+            assert!(filter.is_none(), "a filter without a tiny pass");
+            let mut blocked = vec![false; rays.len()];
+            accel.any_hit_batch(rays, &mut blocked, &mut BatchScratch::default());
+            t = blocked
+                .iter()
+                .map(|&b| if b { Vec3::ZERO } else { Vec3::ONE })
+                .collect();
+        }
+        t
+    }
+
+    fn bits(v: Vec3) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// Every field of a child queue, bit for bit.
+    type QueueBits = (
+        Vec<[u32; 9]>,
+        Vec<u32>,
+        Vec<[u32; 3]>,
+        Vec<[u32; 3]>,
+        Vec<u64>,
+    );
+
+    fn queue_bits(q: &Option<RayQueue>) -> Option<QueueBits> {
+        q.as_ref().map(|q| {
+            let ray = |r: &crate::geometry::Ray| {
+                let [a, b, c] = bits(r.origin);
+                let [d, e, f] = bits(r.dir);
+                let rest = [r.tmin, r.tmax, r.time].map(f32::to_bits);
+                [a, b, c, d, e, f, rest[0], rest[1], rest[2]]
+            };
+            (
+                q.rays.iter().map(ray).collect(),
+                q.slot.clone(),
+                q.weight.iter().copied().map(bits).collect(),
+                q.throughput.iter().copied().map(bits).collect(),
+                q.path.clone(),
+            )
+        })
+    }
+
+    /// The shading lanes' settlement against the queue path, ray for ray and sum for
+    /// sum, on real hits: camera rays and two waves of their children, transmitted
+    /// shadows on (the `TinyShadow` glass pass) and off (the plain occlusion batch).
+    ///
+    /// Ray for ray: the queued shadow rays of each point and directional light, taken
+    /// sixteen at a time into lanes and settled by [`PointOccluders::settle`] (both
+    /// culls on), pass exactly where the queue path's transmittance is not zero, with
+    /// its factor bit for bit, and count the same rays settled through glass.
+    ///
+    /// Sum for sum: shading with the occluders (nothing queued for those lights)
+    /// against shading into the queues then settling them: the same ray counts, samples
+    /// drawn and child rays bit for bit, and each camera sample's radiance within
+    /// `2 γ_N` relative, `N` the terms the queue path added to it (see the module).
+    #[test]
+    fn lane_settled_point_lights_match_the_queue_path_on_real_hits() {
+        let scene = scene();
+        let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+        assert!(accel.tiny.is_some(), "the test scene is a tiny one");
+        let ends: Vec<Option<Vec3>> = scene
+            .lights
+            .iter()
+            .map(|l| match *l {
+                Light::Point { position, .. } => Some(position),
+                _ => None,
+            })
+            .collect();
+        let (mut compared, mut blocked, mut through_glass, mut sums, mut differ) = (0, 0, 0, 0, 0);
+        let mut culled_spheres = 0;
+        for transmitted in [true, false] {
+            let name = format!("transmitted shadows {transmitted}");
+            let mut opts = RenderOptions::from_scene(&scene);
+            opts.transmitted_shadows = transmitted;
+            let plan = SamplePlan::new(&scene, &opts);
+            let shader = Shader::new(&scene, &opts, plan);
+            let filter = ShadowFilter::new(&scene, transmitted, accel.kind);
+            assert_eq!(filter.is_some(), transmitted, "{name}");
+            let occluders = PointOccluders::new(&accel, filter.as_ref()).expect("applies");
+            let queued = LaneShading::new(&scene, plan.environment).expect("lane path");
+            let fused = LaneShading::new(&scene, plan.environment)
+                .expect("lane path")
+                .with_point_occluders(PointOccluders::new(&accel, filter.as_ref()));
+            let (w, h) = (128, 96);
+            let frame = scene.camera.frame(w, h);
+            let queue = RayQueue::pixel_centres(&frame, w, h, plan.first_path());
+            let slots = (w * h) as usize;
+            let mut scratch = ShadeScratch::default();
+            let mut queues = vec![(queue, 0)];
+            while let Some((queue, depth)) = queues.pop() {
+                let at = format!("{name} depth {depth}");
+                let hits: Vec<_> = queue.rays.iter().map(|r| accel.closest_hit(r)).collect();
+                let (mut a, mut b) = (sinks(&scene, slots), sinks(&scene, slots));
+                shade_queue(
+                    &shader,
+                    Some(&fused),
+                    &queue,
+                    &hits,
+                    depth,
+                    &mut a,
+                    &mut scratch,
+                );
+                shade_queue(
+                    &shader,
+                    Some(&queued),
+                    &queue,
+                    &hits,
+                    depth,
+                    &mut b,
+                    &mut scratch,
+                );
+                assert!(a.shadow.iter().all(|q| q.rays.is_empty()), "{at}: queued");
+                // Terms of each camera sample: its rays' local radiance, then its
+                // unblocked shadow rays.
+                let mut terms = vec![0u32; slots];
+                for &slot in &queue.slot {
+                    terms[slot as usize] += 1;
+                }
+                let mut queue_counts = b.rays;
+                for (light, q) in b.shadow.iter_mut().enumerate() {
+                    let mut counts = RayCounts::default();
+                    let t = queue_transmittance(&accel, filter.as_ref(), &q.rays, &mut counts);
+                    queue_counts.transmitted_shadow += counts.transmitted_shadow;
+                    let mut lane_glass = 0u64;
+                    for (c, chunk) in q.rays.chunks(16).enumerate() {
+                        let lane = |f: &dyn Fn(&crate::geometry::Ray) -> f32| {
+                            let mut v = [0.0f32; 16];
+                            for (x, r) in v.iter_mut().zip(chunk) {
+                                *x = f(r);
+                            }
+                            Packet::new(v)
+                        };
+                        let s = ShadowLanes {
+                            origin: V3 {
+                                x: lane(&|r| r.origin.x),
+                                y: lane(&|r| r.origin.y),
+                                z: lane(&|r| r.origin.z),
+                            },
+                            dir: V3 {
+                                x: lane(&|r| r.dir.x),
+                                y: lane(&|r| r.dir.y),
+                                z: lane(&|r| r.dir.z),
+                            },
+                            tmax: lane(&|r| r.tmax),
+                            contribution: V3::splat(Vec3::ONE),
+                            mask: ((1u64 << chunk.len()) - 1) as u32,
+                        };
+                        if let Some(l) = ends[light] {
+                            let (g, rho) = origin_ball(&s.origin, s.mask);
+                            culled_spheres += occluders
+                                .spheres
+                                .iter()
+                                .filter(|&&(c, r)| sphere_clear(l, g, rho, c, r))
+                                .count();
+                        }
+                        let settled = occluders.settle(&s, ends[light]);
+                        lane_glass += settled.settled.count_ones() as u64;
+                        for (i, &t) in t[c * 16..c * 16 + chunk.len()].iter().enumerate() {
+                            let pass = settled.pass >> i & 1 == 1;
+                            assert_eq!(pass, t != Vec3::ZERO, "{at} light {light} ray {i}");
+                            if pass {
+                                assert_eq!(bits(settled.factor.lane(i)), bits(t), "{at}");
+                            }
+                            blocked += !pass as usize;
+                            compared += 1;
+                        }
+                    }
+                    assert_eq!(lane_glass, counts.transmitted_shadow, "{at} light {light}");
+                    through_glass += lane_glass;
+                    for ((&t, &slot), &c) in t.iter().zip(&q.slot).zip(&q.contribution) {
+                        if t != Vec3::ZERO {
+                            b.acc[slot as usize] += c * t;
+                            terms[slot as usize] += 1;
+                        }
+                    }
+                    q.clear();
+                }
+                assert_eq!(a.rays, queue_counts, "{at}: ray counts");
+                assert_eq!(a.drawn, b.drawn, "{at}: samples drawn");
+                for (slot, (x, y)) in a.acc.iter().zip(&b.acc).enumerate() {
+                    let n = terms[slot];
+                    let tol = 2.0 * gamma(n) * x.abs().max(y.abs());
+                    for c in 0..3 {
+                        assert!(
+                            (x[c] - y[c]).abs() <= tol[c],
+                            "{at} sample {slot}: lanes {x} queue {y} ({n} terms)"
+                        );
+                    }
+                    differ += (bits(*x) != bits(*y)) as usize;
+                    sums += 1;
+                }
+                for kind in ChildKind::ALL {
+                    let qa = &mut a.next[kind];
+                    assert!(
+                        queue_bits(qa) == queue_bits(&b.next[kind]),
+                        "{at}: {kind:?}"
+                    );
+                    if depth < 2
+                        && let Some(q) = qa.take()
+                        && !q.rays.is_empty()
+                    {
+                        queues.push((q, depth + 1));
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "point shadows in lanes: {compared} rays compared, {blocked} blocked, \
+             {through_glass} through glass, {culled_spheres} group-sphere tests culled; \
+             {differ} of {sums} camera-sample sums not bit-equal"
+        );
+        assert!(compared > 30_000, "{compared} rays");
+        assert!(blocked > 1_000 && through_glass > 500 && culled_spheres > 2_000);
+    }
+}
