@@ -41,8 +41,8 @@
 //! share (no quiet machine in this session).
 
 use super::shadow::ShadowFilter;
-use super::tiny_shadow::{LaneSettled, SphereShadow};
-use crate::accel::{Occluder, SceneAccel, TINY_MAX_PRIMITIVES};
+use super::tiny_shadow::{GlassSet, LaneSettled, tiny_shadow_scene};
+use crate::accel::{SceneAccel, TINY_MAX_PRIMITIVES};
 use crate::simd::direct_light::ShadowLanes;
 use crate::simd::glass_shadow::settle_gathered;
 use crate::simd::kernels::{RayLanes, sphere_lanes};
@@ -51,9 +51,6 @@ use crate::simd::shadow_cull::{AxisPlane, origin_ball, sphere_clear};
 use crate::simd::tiny::{TinyGroup, lane_shear_keys};
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
-
-/// The opaque spheres, the glass spheres and the glass's transmission.
-type GlassSet = (Vec<(Vec3, f32)>, Vec<(Vec3, f32)>, Vec3);
 
 /// An owned copy of a tiny scene's primitives for settling the shadow rays of point and
 /// directional lights in the shading lanes (see the module).
@@ -73,21 +70,7 @@ impl PointOccluders {
     /// a second query (no `filter`) or the filter has a `tiny_pass`. The same
     /// conditions as `LaneOccluders::new`.
     pub fn new(accel: &SceneAccel, filter: Option<&ShadowFilter>) -> Option<PointOccluders> {
-        let tiny = accel.tiny.as_ref()?;
-        if accel.has_sets_from(Occluder::Moving) {
-            return None;
-        }
-        let glass = match filter {
-            None => None,
-            Some(f) => match f.tiny_pass(accel)?.spheres {
-                SphereShadow::Opaque => None,
-                SphereShadow::Glass {
-                    opaque,
-                    glass,
-                    transmission,
-                } => Some((opaque.to_vec(), glass.to_vec(), transmission)),
-            },
-        };
+        let (tiny, glass) = tiny_shadow_scene(accel, filter)?;
         Some(PointOccluders {
             triangles: tiny.triangles().to_vec(),
             planes: tiny.triangles().iter().map(AxisPlane::of).collect(),

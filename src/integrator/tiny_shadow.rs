@@ -232,7 +232,7 @@ pub fn sphere_clear_of(origin: Vec3, q: &QuadLight, center: Vec3, radius: f32) -
 }
 
 /// The opaque spheres, the glass spheres and the glass's transmission.
-type GlassSet = (Vec<(Vec3, f32)>, Vec<(Vec3, f32)>, Vec3);
+pub(crate) type GlassSet = (Vec<(Vec3, f32)>, Vec<(Vec3, f32)>, Vec3);
 
 /// What [`LaneOccluders::settle`] found for sixteen lanes.
 pub struct LaneSettled {
@@ -246,25 +246,40 @@ pub struct LaneSettled {
     pub settled: u32,
 }
 
+/// The tiny scene and its glass split (opaque spheres, glass spheres, transmission;
+/// `None`: every sphere opaque) where the queue path (`wavefront::trace_shadows`)
+/// settles shadow rays through the tiny scene alone: its batch queries go through the
+/// `TinyScene` (no moving geometry, instances or planes), and either no ray needs a
+/// second query (no `filter`) or the filter has a `tiny_pass`. What the lane-settled
+/// shadows of quad lights ([`LaneOccluders`]) and of point lights
+/// (`point_shadow::PointOccluders`) both start from.
+pub(crate) fn tiny_shadow_scene<'a>(
+    accel: &'a SceneAccel,
+    filter: Option<&ShadowFilter>,
+) -> Option<(&'a TinyScene, Option<GlassSet>)> {
+    let tiny = accel.tiny.as_ref()?;
+    if accel.has_sets_from(Occluder::Moving) {
+        return None;
+    }
+    let glass = match filter {
+        None => None,
+        Some(f) => match f.tiny_pass(accel)?.spheres {
+            SphereShadow::Opaque => None,
+            SphereShadow::Glass {
+                opaque,
+                glass,
+                transmission,
+            } => Some((opaque.to_vec(), glass.to_vec(), transmission)),
+        },
+    };
+    Some((tiny, glass))
+}
+
 impl LaneOccluders {
     /// `Some` where the queue path would settle area-shadow rays by the tiny scene
     /// alone (see the type); `filter` is the render's shadow filter.
     pub fn new(accel: &SceneAccel, filter: Option<&ShadowFilter>) -> Option<LaneOccluders> {
-        let tiny = accel.tiny.as_ref()?;
-        if accel.has_sets_from(Occluder::Moving) {
-            return None;
-        }
-        let glass = match filter {
-            None => None,
-            Some(f) => match f.tiny_pass(accel)?.spheres {
-                SphereShadow::Opaque => None,
-                SphereShadow::Glass {
-                    opaque,
-                    glass,
-                    transmission,
-                } => Some((opaque.to_vec(), glass.to_vec(), transmission)),
-            },
-        };
+        let (tiny, glass) = tiny_shadow_scene(accel, filter)?;
         let planes: Vec<TrianglePlane> = tiny.triangles().iter().map(TrianglePlane::new).collect();
         let twins = (0..planes.len())
             .map(|i| (0..i).find(|&j| planes[j].same_plane(&planes[i])))
