@@ -41,10 +41,9 @@
 //! share (no quiet machine in this session).
 
 use super::shadow::ShadowFilter;
-use super::tiny_shadow::{GlassSet, LaneSettled, tiny_shadow_scene};
+use super::tiny_shadow::{GlassSet, LaneSettled, settle_spheres, tiny_shadow_scene};
 use crate::accel::{SceneAccel, TINY_MAX_PRIMITIVES};
 use crate::simd::direct_light::ShadowLanes;
-use crate::simd::glass_shadow::settle_gathered;
 use crate::simd::kernels::{RayLanes, sphere_lanes};
 use crate::simd::lanes3::V3;
 use crate::simd::shadow_cull::{AxisPlane, origin_ball, sphere_clear};
@@ -157,59 +156,14 @@ impl PointOccluders {
                 sph |= sphere_lanes(&lanes, center, radius, tmax, test).1;
             }
         }
-        let Some((opaque, glass, transmission)) = &self.glass else {
-            return LaneSettled {
-                pass: live & !(tri | sph),
-                factor: one,
-                settled: 0,
-            };
-        };
-        if sph == 0 {
-            return LaneSettled {
-                pass: live & !tri,
-                factor: one,
-                settled: 0,
-            };
-        }
-        let pick = |list: &[(Vec3, f32)]| {
-            let bits = near(list);
-            let mut out = [(Vec3::ZERO, 0.0f32); TINY_MAX_PRIMITIVES];
-            let mut n = 0;
-            for (k, s) in list.iter().enumerate() {
-                if bits >> (k & 31) & 1 == 1 {
-                    out[n & 7] = *s;
-                    n += 1;
-                }
-            }
-            (out, n.min(TINY_MAX_PRIMITIVES))
-        };
-        let (o, no) = pick(opaque);
-        let (g, ng) = pick(glass);
-        let (blocked, counts) = settle_gathered(&lanes, tmax, sph, &o[..no], &g[..ng]);
-        let factor = glass_factor(counts, *transmission);
-        let zero = Packet::splat(0.0);
-        let dark = factor.x.simd_eq(zero) & factor.y.simd_eq(zero) & factor.z.simd_eq(zero);
-        LaneSettled {
-            pass: live & !tri & !blocked & !dark.to_bitmask(),
-            factor,
-            settled: sph,
-        }
+        settle_spheres(
+            &lanes,
+            tmax,
+            (live, tri, sph),
+            self.glass.as_ref(),
+            |(opaque, glass, _)| (near(opaque), near(glass)),
+        )
     }
-}
-
-/// `transmission` multiplied in `counts[i]` times in lane `i`, starting from one: the
-/// same products in the same order as `ShadowFilter::glass_factor`'s scalar loop.
-#[inline(always)]
-fn glass_factor(counts: [u32; 16], transmission: Vec3) -> V3 {
-    let most = counts.iter().max().copied().unwrap_or(0);
-    let counts = Packet::new(counts.map(|c| c as f32));
-    let tr = V3::splat(transmission);
-    let mut factor = V3::splat(Vec3::ONE);
-    for k in 0..most {
-        let more = counts.simd_gt(Packet::splat(k as f32));
-        factor = V3::select(more, factor.times(tr), factor);
-    }
-    factor
 }
 
 /// Settles the lanes of `s` with `occluders` and adds what reaches the light to `sum`

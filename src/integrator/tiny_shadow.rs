@@ -437,53 +437,74 @@ impl LaneOccluders {
                 }
             }
         }
-        let one = V3::splat(Vec3::ONE);
-        let Some((opaque, glass, transmission)) = &self.glass else {
-            return LaneSettled {
-                pass: live & !(tri | sph),
-                factor: one,
-                settled: 0,
-            };
+        settle_spheres(&lanes, tmax, (live, tri, sph), self.glass.as_ref(), |_| {
+            (near_spheres.opaque, near_spheres.glass)
+        })
+    }
+}
+
+/// The end of both lane-settled shadow paths (quad lights here, point lights in
+/// `point_shadow`): of the `live` lanes, `tri` are blocked by a triangle and `sph` meet
+/// a sphere. Without a glass split every sphere blocks; with one (`glass`), the sphere
+/// lanes are settled as the queue path settles them (`settle_gathered` on the spheres
+/// `near` picks from each list: its bits of the opaque and the glass list), each lane's
+/// transmittance multiplied in once per crossing, and a lane passes unless blocked or
+/// fully dark.
+#[inline(always)]
+pub(crate) fn settle_spheres(
+    lanes: &RayLanes<Packet>,
+    tmax: Packet,
+    (live, tri, sph): (u32, u32, u32),
+    glass: Option<&GlassSet>,
+    near: impl FnOnce(&GlassSet) -> (u32, u32),
+) -> LaneSettled {
+    let one = V3::splat(Vec3::ONE);
+    let Some(set) = glass else {
+        return LaneSettled {
+            pass: live & !(tri | sph),
+            factor: one,
+            settled: 0,
         };
-        if sph == 0 {
-            return LaneSettled {
-                pass: live & !tri,
-                factor: one,
-                settled: 0,
-            };
-        }
-        let pick = |list: &[(Vec3, f32)], bits: u32| {
-            let mut out = [(Vec3::ZERO, 0.0f32); TINY_MAX_PRIMITIVES];
-            let mut n = 0;
-            for (k, s) in list.iter().enumerate() {
-                if bits >> (k & 31) & 1 == 1 {
-                    out[n & 7] = *s;
-                    n += 1;
-                }
+    };
+    if sph == 0 {
+        return LaneSettled {
+            pass: live & !tri,
+            factor: one,
+            settled: 0,
+        };
+    }
+    let (opaque, glass, transmission) = set;
+    let (opaque_bits, glass_bits) = near(set);
+    let pick = |list: &[(Vec3, f32)], bits: u32| {
+        let mut out = [(Vec3::ZERO, 0.0f32); TINY_MAX_PRIMITIVES];
+        let mut n = 0;
+        for (k, s) in list.iter().enumerate() {
+            if bits >> (k & 31) & 1 == 1 {
+                out[n & 7] = *s;
+                n += 1;
             }
-            (out, n.min(TINY_MAX_PRIMITIVES))
-        };
-        let (o, no) = pick(opaque, near_spheres.opaque);
-        let (g, ng) = pick(glass, near_spheres.glass);
-        let (blocked, n) = settle_gathered(&lanes, tmax, sph, &o[..no], &g[..ng]);
-        // `t *= transmission` once per crossing, lane by lane: the same products in the
-        // same order as the scalar loop.
-        let counts = n.map(|c| c as f32);
-        let counts = Packet::new(counts);
-        let most = n.iter().max().copied().unwrap_or(0);
-        let tr = V3::splat(*transmission);
-        let mut factor = one;
-        for k in 0..most {
-            let more = counts.simd_gt(Packet::splat(k as f32));
-            factor = V3::select(more, factor.times(tr), factor);
         }
-        let zero = Packet::splat(0.0);
-        let dark = factor.x.simd_eq(zero) & factor.y.simd_eq(zero) & factor.z.simd_eq(zero);
-        LaneSettled {
-            pass: live & !tri & !blocked & !dark.to_bitmask(),
-            factor,
-            settled: sph,
-        }
+        (out, n.min(TINY_MAX_PRIMITIVES))
+    };
+    let (o, no) = pick(opaque, opaque_bits);
+    let (g, ng) = pick(glass, glass_bits);
+    let (blocked, n) = settle_gathered(lanes, tmax, sph, &o[..no], &g[..ng]);
+    // `t *= transmission` once per crossing, lane by lane: the same products in the
+    // same order as the scalar loop (`ShadowFilter::glass_factor`).
+    let counts = Packet::new(n.map(|c| c as f32));
+    let most = n.iter().max().copied().unwrap_or(0);
+    let tr = V3::splat(*transmission);
+    let mut factor = one;
+    for k in 0..most {
+        let more = counts.simd_gt(Packet::splat(k as f32));
+        factor = V3::select(more, factor.times(tr), factor);
+    }
+    let zero = Packet::splat(0.0);
+    let dark = factor.x.simd_eq(zero) & factor.y.simd_eq(zero) & factor.z.simd_eq(zero);
+    LaneSettled {
+        pass: live & !tri & !blocked & !dark.to_bitmask(),
+        factor,
+        settled: sph,
     }
 }
 
