@@ -425,7 +425,8 @@ impl RenderReport {
         if let Some(st) = &self.stages_ms {
             let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
             s += &format!(
-                "stages   camera {:.1}, trace {:.1}, shade {:.1}, shadow {}, area shadow {}, reflection {}, refraction {}, glossy {}, translucency {} (ms, all threads)\n",
+                "stages   setup {:.1}, camera {:.1}, trace {:.1}, shade {:.1}, shadow {}, area shadow {}, reflection {}, refraction {}, glossy {}, translucency {}, resolve {:.1}, assemble {:.1} (ms, all threads)\n",
+                st.setup,
                 st.camera,
                 st.trace,
                 st.shade,
@@ -434,7 +435,9 @@ impl RenderReport {
                 opt(st.reflection),
                 opt(st.refraction),
                 opt(st.glossy),
-                opt(st.translucency)
+                opt(st.translucency),
+                st.resolve,
+                st.assemble
             );
         }
         s += &format!(

@@ -73,11 +73,17 @@ impl AddAssign for RayCounts {
 }
 
 /// Milliseconds spent in each stage of the wavefront integrator, summed over worker
-/// threads (so on `n` threads they add up to about `n` times the render time). A stage
-/// the scene does not need does not exist and is `None` (absent from the JSON); the
-/// recursive integrator has no stages.
+/// threads (so on `n` threads they add up to about `n` times the render time, less the
+/// time threads wait for work). A stage the scene does not need does not exist and is
+/// `None` (absent from the JSON); the recursive integrator has no stages.
+///
+/// `setup` and `assemble` are the serial work of the render phase, before the first
+/// tile and after the last (one thread works, the others wait), so on `n` threads
+/// `n * render - sum of the stages` is about the time threads spent waiting.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct StageTimes {
+    /// Before the tiles: the camera, the film, the per-worker scratch slots (serial).
+    pub setup: f64,
     /// Camera-ray generation.
     pub camera: f64,
     /// Closest hits of camera rays.
@@ -102,6 +108,11 @@ pub struct StageTimes {
     pub glossy: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub translucency: Option<f64>,
+    /// The pixel filter (camera-sample radiance into pixel values and sums) and the
+    /// copy of each finished tile into the film.
+    pub resolve: f64,
+    /// After the tiles: the bands' counts and sums merged, the scratch freed (serial).
+    pub assemble: f64,
 }
 
 impl StageTimes {
@@ -126,6 +137,7 @@ impl AddAssign for StageTimes {
                 *a = Some(a.unwrap_or(0.0) + b);
             }
         }
+        self.setup += o.setup;
         self.camera += o.camera;
         self.trace += o.trace;
         self.shade += o.shade;
@@ -135,6 +147,8 @@ impl AddAssign for StageTimes {
         add(&mut self.refraction, o.refraction);
         add(&mut self.glossy, o.glossy);
         add(&mut self.translucency, o.translucency);
+        self.resolve += o.resolve;
+        self.assemble += o.assemble;
     }
 }
 

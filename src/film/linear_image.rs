@@ -13,11 +13,23 @@ pub struct Film {
 }
 
 impl Film {
+    /// A black frame. Its pixels come from `alloc_zeroed` (zero pages from the kernel),
+    /// so making it writes nothing: the pages are touched by whoever writes them first,
+    /// in parallel in the tile renderer. `vec![Vec3::ZERO; n]` filled the 9.4 MB of a
+    /// 1024x768 frame serially before any tile started: 5-11 ms of the render phase
+    /// (whitted_base, 1 thread, loaded machine), one thread working and one waiting.
+    ///
+    /// Dead end: `madvise(MADV_HUGEPAGE)` on the frame. First touch of a fresh 4 KiB
+    /// page costs 4-18 us on this VM (9.4 MB touched in 21-39 ms, 6 runs, load 7.5),
+    /// and huge pages made it 1.7-2.3 ms in half the runs but 46-120 ms in the others
+    /// (direct compaction; the `madvise` call itself took up to 10 ms), so the bunny
+    /// frame's `resolve` stage went from 30-38 ms to 7-110 ms. `MADV_POPULATE_WRITE`
+    /// (prefault in one call) cost as much as touching (16-28 ms).
     pub fn new(width: u32, height: u32) -> Self {
         Film {
             width,
             height,
-            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+            pixels: zeroed_pixels(width as usize * height as usize),
         }
     }
 
@@ -102,6 +114,25 @@ impl Film {
     }
 }
 
+// Three f32 lanes and nothing else, so all-zero bytes are `Vec3::ZERO`.
+const _: () = assert!(std::mem::size_of::<Vec3>() == 12 && std::mem::align_of::<Vec3>() == 4);
+
+/// `n` black pixels, allocated zeroed rather than filled.
+fn zeroed_pixels(n: usize) -> Vec<Vec3> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let layout = std::alloc::Layout::array::<Vec3>(n).expect("pixel array size");
+    // SAFETY: `layout` has a non-zero size (n > 0, Vec3 is 12 bytes).
+    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<Vec3>();
+    if ptr.is_null() {
+        std::alloc::handle_alloc_error(layout);
+    }
+    // SAFETY: allocated by the global allocator with the layout of `n` Vec3s (the
+    // layout `Vec<Vec3>` frees with), and all-zero bytes are a valid Vec3 (0.0 thrice).
+    unsafe { Vec::from_raw_parts(ptr, n, n) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -119,6 +150,20 @@ mod tests {
         assert!((a.rmse(&b).unwrap() - 0.1).abs() < 1e-7);
         assert!((a.psnr(&b).unwrap() - 20.0).abs() < 1e-5);
         assert!(a.rmse(&Film::new(3, 4)).is_err());
+    }
+
+    /// The zero-allocated frame is black, every pixel, at any size (0 included), and
+    /// frees like any vector (a second frame reuses the allocator without complaint).
+    #[test]
+    fn new_frame_is_black() {
+        for (w, h) in [(0, 0), (1, 1), (3, 4), (1024, 768)] {
+            let f = Film::new(w, h);
+            assert_eq!(f.pixels.len(), (w * h) as usize);
+            assert!(f.pixels.iter().all(|&p| p == Vec3::ZERO), "{w}x{h}");
+            let mut g = f.clone();
+            g.pixels.push(Vec3::ONE);
+            assert_eq!(g.pixels.len(), (w * h) as usize + 1);
+        }
     }
 
     #[test]

@@ -298,6 +298,7 @@ fn render_tile(
         ws.radiance.append(&mut ws.sinks.acc);
         ws.sinks.slot_pixel.clear();
         ws.camera.clear();
+        let t = Instant::now();
         let done = (ws.radiance.len() / rays_per_pixel).min(ws.unresolved.len());
         resolve_pixels(
             &plan,
@@ -310,6 +311,7 @@ fn render_tile(
         ws.unresolved.drain(..done);
         ws.offsets.drain(..done * eye);
         ws.radiance.drain(..done * rays_per_pixel);
+        stages.resolve += ms_since(t);
     };
 
     // Camera rays of a chunk of pixels, built lane-parallel (`camera_packets`, the same

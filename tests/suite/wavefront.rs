@@ -315,7 +315,8 @@ fn wavefront_queues_are_bounded_whatever_the_sample_counts() {
 /// Time by stage: at one thread the stages are disjoint intervals of the render phase,
 /// so each is non-negative and together they take no more than it. The Whitted room
 /// (mirror, glass, point lights) has the camera, trace, shade, shadow, reflection and
-/// refraction stages.
+/// refraction stages, and every frame has the tile scheduler's serial `setup` and
+/// `assemble` and the pixel filter's `resolve`.
 #[test]
 fn stage_times_are_part_of_the_render_phase() {
     let s = stats_with("whitted.toml", &["--threads", "1"]);
@@ -327,6 +328,9 @@ fn stage_times_are_part_of_the_render_phase() {
         "shadow",
         "reflection",
         "refraction",
+        "setup",
+        "resolve",
+        "assemble",
     ] {
         assert!(stages.contains_key(key), "missing stage {key}: {stages:?}");
     }
