@@ -28,6 +28,17 @@
 //! binning of large nodes (13 %) and their partition's share had been; per reference it
 //! stores six 8-lane bin boxes and three counts where the two passes stored three and
 //! three plus the reference, and the stores, not the saved read, set its pace.
+//!
+//! Dead end, 2026-11-24 (commit 389c6a0 on branch `build4`, reverted): nodes of at
+//! least 16k references binned a sample (the first two references, one 64-byte line,
+//! of every 16) to choose the split, and their partition gathered the children's
+//! boxes (the sample's bins do not hold them). perf at 10^6, 1 thread: binning 22.7 ->
+//! ~18 % of the samples (the sampled binning itself 1.4 %), but partition 22 -> 26 %
+//! (the box-gathering kernel of the large nodes alone 12.7 %). CPU ms per build at
+//! 10^6 (load 6-8, 3 interleaved rounds of 3 builds, medians): 543/483/595 before,
+//! 707/678/610 sampled; 10^7 one build each, 7,588 before, 8,207 sampled. SAH cost
+//! 16.0920 -> 16.1746 (+0.5 %) at 10^6, 18.5870 -> 18.6135 at 10^7; sampling from
+//! 4096 or 1024 references (16.1847, 16.2096) was no faster either.
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
@@ -186,9 +197,6 @@ struct Builder {
     /// in use): [`Builder::blocks`] is then a shift. The integer division it replaces
     /// ran twice per bin and axis in the sweep, and the sweep was 10 % of a build.
     block_shift: Option<u32>,
-    /// Nodes of at least this many references choose their split from a sample
-    /// ([`Bins::add_sampled`]; [`SAMPLED_BINNING`] in a build, `usize::MAX` for none).
-    sample_from: usize,
 }
 
 /// Most bins per axis the builder supports (a power of two: see [`Bins::add`]).
@@ -289,54 +297,10 @@ impl Bins {
         self.add_all(pairs.remainder(), lo, scale, bins_n);
         self.merge_first(other, bins_n);
     }
-
-    /// As [`Bins::add_all_paired`] over a sample of `refs`: the first two references
-    /// of every [`SAMPLE_BLOCK`] counted from the start of `refs` (the first into this
-    /// set, the second into `other`). Counts are the sample's; [`Bins::weigh`] scales
-    /// them.
-    fn add_sampled(
-        &mut self,
-        other: &mut Bins,
-        refs: &[PrimRef],
-        lo: Vec3A,
-        scale: Vec3A,
-        bins_n: usize,
-    ) {
-        for block in refs.chunks(SAMPLE_BLOCK) {
-            let a = &block[0];
-            self.add(bins_of(a.centroid(), lo, scale, bins_n), &a.bin_box());
-            if let Some(b) = block.get(1) {
-                other.add(bins_of(b.centroid(), lo, scale, bins_n), &b.bin_box());
-            }
-        }
-        self.merge_first(other, bins_n);
-    }
-
-    /// Multiplies the first `n` counts of each axis by `w` (a sample's weight).
-    fn weigh(&mut self, n: usize, w: u32) {
-        for a in 0..3 {
-            for c in &mut self.counts[a][..n] {
-                *c *= w;
-            }
-        }
-    }
 }
 
 /// Nodes with at least this many references bin into two sets ([`Bins::add_all_paired`]).
 const PAIRED_BINNING: usize = 64;
-
-/// Nodes with at least this many references bin a sample of them
-/// ([`Bins::add_sampled`]) to choose their split, then partition all of them,
-/// gathering the children's boxes on the way ([`partition_with_boxes`]).
-const SAMPLED_BINNING: usize = PARALLEL_NODE;
-/// The sample: the first two references (one 64-byte line) of every block of this many.
-const SAMPLE_BLOCK: usize = 16;
-/// The references each sampled one stands for in the sweep's counts.
-const SAMPLE_WEIGHT: u32 = (SAMPLE_BLOCK / 2) as u32;
-/// Chunk of a sampled node binned by one task (a multiple of [`SAMPLE_BLOCK`], so the
-/// sample is the same whatever the chunking).
-const SAMPLED_CHUNK: usize = PARALLEL_THRESHOLD * 4;
-const _: () = assert!(SAMPLED_CHUNK % SAMPLE_BLOCK == 0 && PARALLEL_THRESHOLD % SAMPLE_BLOCK == 0);
 
 thread_local! {
     /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
@@ -394,21 +358,6 @@ pub(super) fn build_tree<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
 ) -> (Option<BuildNode>, Vec<u32>) {
-    // TEMP(build4): A/B switch, removed before commit.
-    let from = std::env::var("B4_SAMPLE_FROM")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(SAMPLED_BINNING);
-    build_tree_sampling(prims, opts, from)
-}
-
-/// [`build_tree`] with nodes of at least `sample_from` references binned from a
-/// sample (`usize::MAX`: none).
-fn build_tree_sampling<P: Primitives>(
-    prims: &P,
-    opts: Bvh2BuildOptions,
-    sample_from: usize,
-) -> (Option<BuildNode>, Vec<u32>) {
     assert!(
         opts.bins >= 2 && opts.bins <= MAX_BINS,
         "bins must be in 2..={MAX_BINS}"
@@ -438,7 +387,6 @@ fn build_tree_sampling<P: Primitives>(
     let builder = Builder {
         opts,
         block_shift: bs.is_power_of_two().then(|| bs.trailing_zeros()),
-        sample_from,
     };
     let nb = node_bounds(&refs);
     let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb);
@@ -579,12 +527,8 @@ impl Builder {
             if n <= self.opts.max_leaf && leaf_cost <= c.split.cost {
                 return leaf(refs);
             }
-            let (m, left, right) = if n >= self.sample_from {
-                // The bins saw a sample: the children's boxes come from the partition.
-                let p = partition_with_boxes(refs, scratch, &nb.centroids, c.split);
-                (p.mid, p.left, p.right)
-            } else {
-                let (m, lc, rc) = partition(refs, scratch, &nb.centroids, c.split);
+            let (m, lc, rc) = partition(refs, scratch, &nb.centroids, c.split);
+            if m > 0 && m < n {
                 let left = NodeBounds {
                     bounds: c.left,
                     centroids: lc,
@@ -593,9 +537,6 @@ impl Builder {
                     bounds: c.right,
                     centroids: rc,
                 };
-                (m, left, right)
-            };
-            if m > 0 && m < n {
                 split = Some((m, left, right));
             }
         }
@@ -671,37 +612,20 @@ impl Builder {
         let bins_n = self.opts.bins.min(refs.len().max(4));
         let cb = &nb.centroids;
         let scale = bin_scale(cb, bins_n);
-        let sampled = refs.len() >= self.sample_from;
         if refs.len() >= PARALLEL_NODE {
-            let chunk = if sampled {
-                SAMPLED_CHUNK
-            } else {
-                PARALLEL_THRESHOLD
-            };
-            let mut bins = refs
-                .par_chunks(chunk)
+            let bins = refs
+                .par_chunks(PARALLEL_THRESHOLD)
                 .map(|chunk| {
                     let (mut bins, mut other) = (Bins::new(), Bins::new());
-                    if sampled {
-                        bins.add_sampled(&mut other, chunk, cb.min, scale, bins_n);
-                    } else {
-                        bins.add_all_paired(&mut other, chunk, cb.min, scale, bins_n);
-                    }
+                    bins.add_all_paired(&mut other, chunk, cb.min, scale, bins_n);
                     bins
                 })
                 .reduce(Bins::new, |a, b| a.merge(&b));
-            if sampled {
-                bins.weigh(bins_n, SAMPLE_WEIGHT);
-            }
-            self.sweep(&bins, bins_n, nb, refs.len() + SAMPLE_BLOCK)
+            self.sweep(&bins, bins_n, nb, refs.len())
         } else {
             SCRATCH_BINS.with_borrow_mut(|[bins, other]| {
                 bins.clear(bins_n);
-                if sampled {
-                    other.clear(bins_n);
-                    bins.add_sampled(other, refs, cb.min, scale, bins_n);
-                    bins.weigh(bins_n, SAMPLE_WEIGHT);
-                } else if refs.len() >= PAIRED_BINNING {
+                if refs.len() >= PAIRED_BINNING {
                     other.clear(bins_n);
                     bins.add_all_paired(other, refs, cb.min, scale, bins_n);
                 } else {
@@ -950,17 +874,11 @@ impl SideBounds {
     /// to the right.
     #[inline(always)]
     fn add(&mut self, left: BVec3A, c: Vec3A) {
-        self.add_box(left, c, c);
-    }
-
-    /// Adds the box `[lo, hi]` to the left side where `left` is set, else to the right.
-    #[inline(always)]
-    fn add_box(&mut self, left: BVec3A, lo: Vec3A, hi: Vec3A) {
         let inf = Vec3A::splat(f32::INFINITY);
-        self.lmin = self.lmin.min(Vec3A::select(left, lo, inf));
-        self.lmax = self.lmax.max(Vec3A::select(left, hi, -inf));
-        self.rmin = self.rmin.min(Vec3A::select(left, inf, lo));
-        self.rmax = self.rmax.max(Vec3A::select(left, -inf, hi));
+        self.lmin = self.lmin.min(Vec3A::select(left, c, inf));
+        self.lmax = self.lmax.max(Vec3A::select(left, c, -inf));
+        self.rmin = self.rmin.min(Vec3A::select(left, inf, c));
+        self.rmax = self.rmax.max(Vec3A::select(left, -inf, c));
     }
 
     /// The left and right centroid boxes.
@@ -992,13 +910,13 @@ impl SideBounds {
 /// are `dst`, with `right_end = dst + n`; for a chunk of the parallel one, its two
 /// parts, exactly as long as its two sides.
 #[inline(always)]
-unsafe fn partition_kernel<const AXIS: usize, const BOXES: bool>(
+unsafe fn partition_kernel<const AXIS: usize>(
     src: &[PrimRef],
     left: *mut PrimRef,
     right_end: *mut PrimRef,
     p: Plane,
-) -> Parted {
-    let (mut sides, mut boxes) = (SideBounds::new(), SideBounds::new());
+) -> (usize, BBox, BBox) {
+    let mut sides = SideBounds::new();
     let (mut nl, mut nr) = (0usize, 0usize);
     let bin = Vec3A::splat(p.bin);
     for r in src {
@@ -1015,91 +933,47 @@ unsafe fn partition_kernel<const AXIS: usize, const BOXES: bool>(
         unsafe { at.write(*r) };
         nl += usize::from(is_left);
         nr += usize::from(!is_left);
-        let m = Vec3A::splat(k).cmplt(bin);
-        sides.add(m, c);
-        if BOXES {
-            let b = r.bounds();
-            boxes.add_box(m, b.min, b.max);
-        }
+        sides.add(Vec3A::splat(k).cmplt(bin), c);
     }
-    Parted::new(nl, sides, boxes)
+    let (l, r) = sides.boxes();
+    (nl, l, r)
 }
 
 /// [`partition_kernel`] for the split axis of `s`.
 ///
 /// # Safety
 /// As [`partition_kernel`].
-unsafe fn partition_on_axis<const BOXES: bool>(
+unsafe fn partition_on_axis(
     src: &[PrimRef],
     left: *mut PrimRef,
     right_end: *mut PrimRef,
     axis: usize,
     p: Plane,
-) -> Parted {
+) -> (usize, BBox, BBox) {
     // SAFETY: forwarded from the caller.
     unsafe {
         match axis {
-            0 => partition_kernel::<0, BOXES>(src, left, right_end, p),
-            1 => partition_kernel::<1, BOXES>(src, left, right_end, p),
-            _ => partition_kernel::<2, BOXES>(src, left, right_end, p),
+            0 => partition_kernel::<0>(src, left, right_end, p),
+            1 => partition_kernel::<1>(src, left, right_end, p),
+            _ => partition_kernel::<2>(src, left, right_end, p),
         }
     }
 }
 
 /// Counts the references of `src` left of the plane and gathers both sides' centroid
-/// bounds, and with `BOXES` their boxes (the parallel partition's first pass).
-fn count_on_axis<const AXIS: usize, const BOXES: bool>(src: &[PrimRef], p: Plane) -> Parted {
-    let (mut sides, mut boxes) = (SideBounds::new(), SideBounds::new());
+/// bounds (the parallel partition's first pass).
+fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, BBox) {
+    let mut sides = SideBounds::new();
     let mut nl = 0usize;
     let bin = Vec3A::splat(p.bin);
     for r in src {
         let c = r.centroid();
         let k = p.coord(lane::<AXIS>(c));
         nl += usize::from(k < p.bin);
-        let m = Vec3A::splat(k).cmplt(bin);
-        sides.add(m, c);
-        if BOXES {
-            let b = r.bounds();
-            boxes.add_box(m, b.min, b.max);
-        }
+        sides.add(Vec3A::splat(k).cmplt(bin), c);
     }
-    Parted::new(nl, sides, boxes)
-}
-
-/// What a partition returns: the left count and each side's centroid bounds, and
-/// (only from the partitions that gather them, `BOXES`) each side's box; else
-/// [`BBox::EMPTY`] boxes.
-#[derive(Clone, Copy)]
-struct Parted {
-    mid: usize,
-    left: NodeBounds,
-    right: NodeBounds,
-}
-
-impl Parted {
-    #[inline(always)]
-    fn new(mid: usize, centroids: SideBounds, boxes: SideBounds) -> Parted {
-        let ((lc, rc), (lb, rb)) = (centroids.boxes(), boxes.boxes());
-        Parted {
-            mid,
-            left: NodeBounds {
-                bounds: lb,
-                centroids: lc,
-            },
-            right: NodeBounds {
-                bounds: rb,
-                centroids: rc,
-            },
-        }
-    }
-
-    fn union(self, o: &Parted) -> Parted {
-        Parted {
-            mid: self.mid + o.mid,
-            left: self.left.union(&o.left),
-            right: self.right.union(&o.right),
-        }
-    }
+    let (l, r) = sides.boxes();
+    (nl, l, r)
 }
 
 /// Writes the references of `src` whose centroid bin is below the split bin to the
@@ -1117,22 +991,6 @@ impl Parted {
 /// centroid by a run-time axis (through the stack) and kept its bounds and cursor on
 /// the stack; it was the largest single cost of the build (a third of its samples).
 fn partition(src: &[PrimRef], dst: &mut [PrimRef], cb: &BBox, s: Split) -> (usize, BBox, BBox) {
-    let p = partition_gathering::<false>(src, dst, cb, s);
-    (p.mid, p.left.centroids, p.right.centroids)
-}
-
-/// As [`partition`], also gathering each side's box (for nodes binned from a sample,
-/// whose bins hold only the sample's boxes).
-fn partition_with_boxes(src: &[PrimRef], dst: &mut [PrimRef], cb: &BBox, s: Split) -> Parted {
-    partition_gathering::<true>(src, dst, cb, s)
-}
-
-fn partition_gathering<const BOXES: bool>(
-    src: &[PrimRef],
-    dst: &mut [PrimRef],
-    cb: &BBox,
-    s: Split,
-) -> Parted {
     assert_eq!(
         src.len(),
         dst.len(),
@@ -1141,40 +999,37 @@ fn partition_gathering<const BOXES: bool>(
     let scale = bin_scale(cb, s.bins);
     let n = src.len();
     if n >= PARALLEL_NODE && rayon::current_num_threads() > 1 {
-        return partition_parallel::<BOXES>(src, dst, cb.min, scale, s);
+        return partition_parallel(src, dst, cb.min, scale, s);
     }
     let p = Plane::new(cb.min, scale, s);
     let left = dst.as_mut_ptr();
     // SAFETY: `dst` holds `n` references: the lefts fill it from the front, the rights
     // from the back, `n` in all.
-    unsafe { partition_on_axis::<BOXES>(src, left, left.add(n), s.axis, p) }
+    unsafe { partition_on_axis(src, left, left.add(n), s.axis, p) }
 }
 
 /// The parallel partition: the same output as the serial loop of [`partition`].
-fn partition_parallel<const BOXES: bool>(
+fn partition_parallel(
     src: &[PrimRef],
     dst: &mut [PrimRef],
     lo: Vec3A,
     scale: Vec3A,
     s: Split,
-) -> Parted {
+) -> (usize, BBox, BBox) {
     let p = Plane::new(lo, scale, s);
-    // Pass 1: per chunk, the left count and both sides' centroid bounds (and boxes).
-    let counts: Vec<Parted> = src
+    // Pass 1: per chunk, the left count and both sides' centroid bounds.
+    let counts: Vec<(usize, BBox, BBox)> = src
         .par_chunks(PARALLEL_THRESHOLD)
         .map(|chunk| match s.axis {
-            0 => count_on_axis::<0, BOXES>(chunk, p),
-            1 => count_on_axis::<1, BOXES>(chunk, p),
-            _ => count_on_axis::<2, BOXES>(chunk, p),
+            0 => count_on_axis::<0>(chunk, p),
+            1 => count_on_axis::<1>(chunk, p),
+            _ => count_on_axis::<2>(chunk, p),
         })
         .collect();
-    let empty = Parted {
-        mid: 0,
-        left: NodeBounds::EMPTY,
-        right: NodeBounds::EMPTY,
-    };
-    let total = counts.iter().fold(empty, |a, c| a.union(c));
-    let mid = total.mid;
+    let mid: usize = counts.iter().map(|c| c.0).sum();
+    let (left, right) = counts.iter().fold((BBox::EMPTY, BBox::EMPTY), |(a, b), c| {
+        (a.union(&c.1), b.union(&c.2))
+    });
     // Pass 2: chunk j's lefts follow those of chunks before it; its rights, reversed,
     // precede (from the back) those of chunks before it.
     let (dst_left, dst_right) = dst.split_at_mut(mid);
@@ -1182,8 +1037,8 @@ fn partition_parallel<const BOXES: bool>(
     let mut right_parts = Vec::with_capacity(counts.len());
     let (mut lrest, mut rrest) = (dst_left, dst_right);
     for (chunk, c) in src.chunks(PARALLEL_THRESHOLD).zip(&counts) {
-        let (l, lr) = lrest.split_at_mut(c.mid);
-        let (rr, r) = rrest.split_at_mut(rrest.len() - (chunk.len() - c.mid));
+        let (l, lr) = lrest.split_at_mut(c.0);
+        let (rr, r) = rrest.split_at_mut(rrest.len() - (chunk.len() - c.0));
         left_parts.push(l);
         right_parts.push(r);
         (lrest, rrest) = (lr, rr);
@@ -1194,12 +1049,11 @@ fn partition_parallel<const BOXES: bool>(
             let right_end = r.as_mut_ptr_range().end;
             // SAFETY: pass 1 counted `l.len()` lefts and `r.len()` rights in this chunk
             // with the same test, so the kernel writes exactly `l` and `r`.
-            let k = unsafe {
-                partition_on_axis::<false>(chunk, l.as_mut_ptr(), right_end, s.axis, p).mid
-            };
+            let (k, _, _) =
+                unsafe { partition_on_axis(chunk, l.as_mut_ptr(), right_end, s.axis, p) };
             assert_eq!(k, l.len(), "the two passes of the partition agree");
         });
-    total
+    (mid, left, right)
 }
 
 #[cfg(test)]
@@ -1247,8 +1101,7 @@ mod tests {
             .unwrap();
         let (m1, l1, r1) = pool.install(|| partition(&src, &mut serial, &nb.centroids, s));
         let mut parallel = src.clone();
-        let pp = partition_parallel::<false>(&src, &mut parallel, nb.centroids.min, scale, s);
-        let (m2, l2, r2) = (pp.mid, pp.left.centroids, pp.right.centroids);
+        let (m2, l2, r2) = partition_parallel(&src, &mut parallel, nb.centroids.min, scale, s);
         assert!(m1 > 1000 && m1 < src.len() - 1000, "a real split: {m1}");
         assert_eq!(m1, m2);
         assert_eq!(bits(&serial), bits(&parallel));
@@ -1355,7 +1208,6 @@ mod tests {
         let builder = Builder {
             opts: Bvh2BuildOptions::default(),
             block_shift: Some(0),
-            sample_from: usize::MAX,
         };
         let c = builder.best_split(&src, &nb).expect("a split");
         let mut dst = src.clone();
@@ -1414,151 +1266,6 @@ mod tests {
                 };
                 assert_eq!(box_bits(&lc), box_bits(&cb(&want[..m])));
                 assert_eq!(box_bits(&rc), box_bits(&cb(&want[m..])));
-                // The variant that also gathers the sides' boxes: the same output, and
-                // the boxes folded one by one.
-                let mut dst2 = vec![PrimRef::new(far, u32::MAX); src.len()];
-                let p = partition_with_boxes(&src, &mut dst2, &nb.centroids, s);
-                assert_eq!(p.mid, m, "axis {axis} bin {bin}");
-                assert_eq!(bits(&dst2), bits(&want), "axis {axis} bin {bin}");
-                assert_eq!(box_bits(&p.left.centroids), box_bits(&lc));
-                assert_eq!(box_bits(&p.right.centroids), box_bits(&rc));
-                let bb = |r: &[PrimRef]| r.iter().fold(BBox::EMPTY, |b, r| b.union(&r.bounds()));
-                assert_eq!(box_bits(&p.left.bounds), box_bits(&bb(&want[..m])));
-                assert_eq!(box_bits(&p.right.bounds), box_bits(&bb(&want[m..])));
-            }
-        }
-    }
-
-    /// The parallel partition that gathers boxes gives the serial one's output, counts,
-    /// centroid bounds and boxes (chunks merged in any grouping: min and max are exact).
-    #[test]
-    fn parallel_partition_with_boxes_matches_the_serial_one() {
-        let src = refs_3d(PARALLEL_NODE * 2 + 77);
-        let nb = node_bounds(&src);
-        let s = Split {
-            axis: 1,
-            bin: 9,
-            bins: 32,
-            cost: 0.0,
-        };
-        let scale = bin_scale(&nb.centroids, s.bins);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let mut serial = src.clone();
-        let a = pool.install(|| partition_with_boxes(&src, &mut serial, &nb.centroids, s));
-        let mut parallel = src.clone();
-        let b = partition_parallel::<true>(&src, &mut parallel, nb.centroids.min, scale, s);
-        assert!(a.mid > 1000 && a.mid < src.len() - 1000, "a real split: {}", a.mid);
-        assert_eq!(a.mid, b.mid);
-        assert_eq!(bits(&serial), bits(&parallel));
-        for (x, y) in [(a.left, b.left), (a.right, b.right)] {
-            assert_eq!(box_bits(&x.bounds), box_bits(&y.bounds));
-            assert_eq!(box_bits(&x.centroids), box_bits(&y.centroids));
-        }
-        let whole = node_bounds(&src);
-        let both = a.left.union(&a.right);
-        assert_eq!(box_bits(&both.bounds), box_bits(&whole.bounds));
-    }
-
-    /// Sampled bins against a plain reference: per axis and bin, the count (times the
-    /// weight) and the box fold of exactly the references at positions `i % 16 < 2`,
-    /// for lengths that end inside a block, on one block's first reference, and on a
-    /// whole block.
-    #[test]
-    fn sampled_bins_match_a_plain_fold_of_the_sample() {
-        let all = refs_3d(3000);
-        for len in [3000, 2993, 2977, 2976] {
-            let src = &all[..len];
-            let nb = node_bounds(src);
-            let bins_n = 16;
-            let scale = bin_scale(&nb.centroids, bins_n);
-            let mut want = vec![[(0u32, BBox::EMPTY); MAX_BINS]; 3];
-            let mut sampled = 0;
-            for (i, r) in src.iter().enumerate() {
-                if i % SAMPLE_BLOCK >= 2 {
-                    continue;
-                }
-                sampled += 1;
-                let k = bins_of(r.centroid(), nb.centroids.min, scale, bins_n);
-                for a in 0..3 {
-                    let (c, b) = &mut want[a][k[a]];
-                    *c += SAMPLE_WEIGHT;
-                    *b = b.union(&r.bounds());
-                }
-            }
-            let (mut bins, mut other) = (Bins::new(), Bins::new());
-            bins.add_sampled(&mut other, src, nb.centroids.min, scale, bins_n);
-            bins.weigh(bins_n, SAMPLE_WEIGHT);
-            for (a, want_a) in want.iter().enumerate() {
-                for (k, (count, bounds)) in want_a.iter().enumerate() {
-                    assert_eq!(bins.counts[a][k], *count, "len {len} axis {a} bin {k}");
-                    assert_eq!(box_bits(&bins.bounds(a, k)), box_bits(bounds));
-                }
-            }
-            let total: u32 = bins.counts[0].iter().sum();
-            assert_eq!(total, sampled * SAMPLE_WEIGHT, "len {len}");
-        }
-    }
-
-    /// The SAH cost of a build tree (interior nodes 1, leaves their started blocks of
-    /// `block`, each weighted by its area over the root's).
-    fn tree_sah(root: &BuildNode, block: usize) -> f64 {
-        let inv = 1.0 / root.area() as f64;
-        let mut stack = vec![root];
-        let mut cost = 0.0;
-        while let Some(n) = stack.pop() {
-            let a = n.area() as f64 * inv;
-            match n {
-                BuildNode::Leaf { count, .. } => cost += a * count.div_ceil(block) as f64,
-                BuildNode::Interior { children, .. } => {
-                    cost += a;
-                    stack.extend(children.iter());
-                }
-            }
-        }
-        cost
-    }
-
-    /// Binning a sample of the large nodes keeps the tree's SAH cost within 1 % of
-    /// binning every reference (the README reports the change at 10^6), on the
-    /// procedural mesh with the BVH8's options; every primitive is in exactly one leaf
-    /// and every node's box holds its children's.
-    #[test]
-    fn sampled_binning_keeps_the_sah_cost() {
-        let tris = crate::bench::BenchMesh::procedural(200_000).triangles;
-        let opts = Bvh2BuildOptions {
-            max_leaf: 4,
-            block_size: 4,
-            ..Bvh2BuildOptions::default()
-        };
-        let (full, _) = build_tree_sampling(&tris, opts, usize::MAX);
-        let (sampled, ids) = build_tree_sampling(&tris, opts, SAMPLED_BINNING);
-        let (full, sampled) = (full.unwrap(), sampled.unwrap());
-        let (a, b) = (tree_sah(&full, 4), tree_sah(&sampled, 4));
-        println!("SAH full {a:.4}, sampled {b:.4}");
-        assert!((b - a).abs() <= 0.01 * a, "SAH full {a}, sampled {b}");
-        let mut seen = vec![false; tris.v0.len()];
-        for &i in &ids {
-            assert!(!std::mem::replace(&mut seen[i as usize], true), "id {i} twice");
-        }
-        assert!(seen.iter().all(|&s| s));
-        let mut stack = vec![&sampled];
-        while let Some(n) = stack.pop() {
-            if let BuildNode::Interior { bounds, children } = n {
-                for c in children.iter() {
-                    let cb = c.bounds();
-                    let (lo, hi) = (Vec3A::from(cb.min), Vec3A::from(cb.max));
-                    assert!(bounds.min.cmple(lo).all() && hi.cmple(bounds.max).all());
-                    stack.push(c);
-                }
-            } else if let BuildNode::Leaf { bounds, start, count } = n {
-                for &i in &ids[*start..start + count] {
-                    let pb = tris.bounds(i as usize);
-                    let (lo, hi) = (Vec3A::from(pb.min), Vec3A::from(pb.max));
-                    assert!(bounds.min.cmple(lo).all() && hi.cmple(bounds.max).all());
-                }
             }
         }
     }
@@ -1583,7 +1290,6 @@ mod tests {
                     ..Bvh2BuildOptions::default()
                 },
                 block_shift: Some(bs.trailing_zeros()),
-                sample_from: usize::MAX,
             };
             for refs in &nodes {
                 let nb = node_bounds(refs);
@@ -1779,12 +1485,10 @@ mod tests {
             let shifted = Builder {
                 opts,
                 block_shift: Some(bs.trailing_zeros()),
-                sample_from: usize::MAX,
             };
             let divided = Builder {
                 opts,
                 block_shift: None,
-                sample_from: usize::MAX,
             };
             for n in 0..100u32 {
                 assert_eq!(shifted.blocks(n), divided.blocks(n));
