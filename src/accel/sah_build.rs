@@ -330,8 +330,8 @@ impl Bins {
 
     /// Multiplies the first `n` counts of each axis by `w` (a sample's weight).
     fn weigh(&mut self, n: usize, w: u32) {
-        for a in 0..3 {
-            for c in &mut self.counts[a][..n] {
+        for axis in &mut self.counts {
+            for c in &mut axis[..n] {
                 *c *= w;
             }
         }
