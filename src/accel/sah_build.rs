@@ -359,7 +359,7 @@ const SAMPLE_WEIGHT: u32 = (SAMPLE_BLOCK / 2) as u32;
 /// Chunk of a sampled node binned by one task (a multiple of [`SAMPLE_BLOCK`], so the
 /// sample is the same whatever the chunking).
 const SAMPLED_CHUNK: usize = PARALLEL_THRESHOLD * 4;
-const _: () = assert!(SAMPLED_CHUNK % SAMPLE_BLOCK == 0);
+const _: () = assert!(SAMPLED_CHUNK.is_multiple_of(SAMPLE_BLOCK));
 
 thread_local! {
     /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
