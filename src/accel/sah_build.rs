@@ -9,6 +9,7 @@
 //! input order, right reverses it. Nodes of at least [`PARALLEL_NODE`] primitives bin
 //! in parallel chunks from the root on and, with more than one thread, partition in
 //! parallel too (count per chunk, then scatter); their subtrees go to separate threads.
+//! They choose their split from a sample of their references ([`SAMPLED_BINNING`]).
 //! Leaves write their primitives' indices into the output order as they are made.
 //!
 //! Dead ends, measured at 1 thread on the procedural mesh (see README, "Build
@@ -28,6 +29,17 @@
 //! binning of large nodes (13 %) and their partition's share had been; per reference it
 //! stores six 8-lane bin boxes and three counts where the two passes stored three and
 //! three plus the reference, and the stores, not the saved read, set its pace.
+//!
+//! Dead end, 2026-11-24 (commit 389c6a0 on branch `build4`, reverted): nodes of at
+//! least 16k references binned a sample (the first two references, one 64-byte line,
+//! of every 16) to choose the split, and their partition gathered the children's
+//! boxes (the sample's bins do not hold them). perf at 10^6, 1 thread: binning 22.7 ->
+//! ~18 % of the samples (the sampled binning itself 1.4 %), but partition 22 -> 26 %
+//! (the box-gathering kernel of the large nodes alone 12.7 %). CPU ms per build at
+//! 10^6 (load 6-8, 3 interleaved rounds of 3 builds, medians): 543/483/595 before,
+//! 707/678/610 sampled; 10^7 one build each, 7,588 before, 8,207 sampled. SAH cost
+//! 16.0920 -> 16.1746 (+0.5 %) at 10^6, 18.5870 -> 18.6135 at 10^7; sampling from
+//! 4096 or 1024 references (16.1847, 16.2096) was no faster either.
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
@@ -159,8 +171,12 @@ impl BuildNode {
     }
 
     pub(super) fn bounds(&self) -> Aabb {
+        self.bbox().to_aabb()
+    }
+
+    fn bbox(&self) -> BBox {
         match self {
-            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => bounds.to_aabb(),
+            BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => *bounds,
         }
     }
 
@@ -186,6 +202,9 @@ struct Builder {
     /// in use): [`Builder::blocks`] is then a shift. The integer division it replaces
     /// ran twice per bin and axis in the sweep, and the sweep was 10 % of a build.
     block_shift: Option<u32>,
+    /// Nodes of at least this many references choose their split from a sample
+    /// ([`Bins::add_sampled`]; [`SAMPLED_BINNING`] in a build, `usize::MAX` for none).
+    sample_from: usize,
 }
 
 /// Most bins per axis the builder supports (a power of two: see [`Bins::add`]).
@@ -286,10 +305,61 @@ impl Bins {
         self.add_all(pairs.remainder(), lo, scale, bins_n);
         self.merge_first(other, bins_n);
     }
+
+    /// As [`Bins::add_all_paired`] over a sample of `refs`: the first two references
+    /// of every [`SAMPLE_BLOCK`] counted from the start of `refs` (the first into this
+    /// set, the second into `other`, cleared for `bins_n` bins). Counts are the
+    /// sample's; [`Bins::weigh`] scales them.
+    fn add_sampled(
+        &mut self,
+        other: &mut Bins,
+        refs: &[PrimRef],
+        lo: Vec3A,
+        scale: Vec3A,
+        bins_n: usize,
+    ) {
+        for block in refs.chunks(SAMPLE_BLOCK) {
+            let a = &block[0];
+            self.add(bins_of(a.centroid(), lo, scale, bins_n), &a.bin_box());
+            if let Some(b) = block.get(1) {
+                other.add(bins_of(b.centroid(), lo, scale, bins_n), &b.bin_box());
+            }
+        }
+        self.merge_first(other, bins_n);
+    }
+
+    /// Multiplies the first `n` counts of each axis by `w` (a sample's weight).
+    fn weigh(&mut self, n: usize, w: u32) {
+        for axis in &mut self.counts {
+            for c in &mut axis[..n] {
+                *c *= w;
+            }
+        }
+    }
 }
 
 /// Nodes with at least this many references bin into two sets ([`Bins::add_all_paired`]).
 const PAIRED_BINNING: usize = 64;
+
+/// Nodes with at least this many references bin a sample of them
+/// ([`Bins::add_sampled`]) to choose their split, then partition all of them. Their
+/// children's boxes are then the unions of the sample's bins, smaller than the true
+/// ones: a child uses its box only to scale its SAH costs (the same factor for every
+/// plane), gets the true box back as the union of its own children's, and below this
+/// size recomputes it in one pass over its references ([`Builder::build`]).
+///
+/// Measured at 10^6 triangles (perf, 1 thread): binning the nodes of at least 16k
+/// references was 16 % of the build, five times the cost per reference of the small
+/// nodes' binning (their references come from memory, not cache).
+const SAMPLED_BINNING: usize = PARALLEL_NODE;
+/// The sample: the first two references (one 64-byte line) of every block of this many.
+const SAMPLE_BLOCK: usize = 16;
+/// The references each sampled one stands for in the sweep's counts.
+const SAMPLE_WEIGHT: u32 = (SAMPLE_BLOCK / 2) as u32;
+/// Chunk of a sampled node binned by one task (a multiple of [`SAMPLE_BLOCK`], so the
+/// sample is the same whatever the chunking).
+const SAMPLED_CHUNK: usize = PARALLEL_THRESHOLD * 4;
+const _: () = assert!(SAMPLED_CHUNK.is_multiple_of(SAMPLE_BLOCK));
 
 thread_local! {
     /// Bins reused by every node a thread splits: clearing the bins in use is cheaper
@@ -347,6 +417,16 @@ pub(super) fn build_tree<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
 ) -> (Option<BuildNode>, Vec<u32>) {
+    build_tree_sampling(prims, opts, SAMPLED_BINNING)
+}
+
+/// [`build_tree`] with nodes of at least `sample_from` references binned from a
+/// sample (`usize::MAX`: none).
+fn build_tree_sampling<P: Primitives>(
+    prims: &P,
+    opts: Bvh2BuildOptions,
+    sample_from: usize,
+) -> (Option<BuildNode>, Vec<u32>) {
     assert!(
         opts.bins >= 2 && opts.bins <= MAX_BINS,
         "bins must be in 2..={MAX_BINS}"
@@ -376,9 +456,10 @@ pub(super) fn build_tree<P: Primitives>(
     let builder = Builder {
         opts,
         block_shift: bs.is_power_of_two().then(|| bs.trailing_zeros()),
+        sample_from: sample_from.max(opts.max_leaf + 1),
     };
     let nb = node_bounds(&refs);
-    let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb);
+    let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb, true);
     (Some(root), ids)
 }
 
@@ -476,7 +557,9 @@ fn bin_scale(cb: &BBox, bins: usize) -> Vec3A {
 impl Builder {
     /// Builds the subtree over `refs` (which start at global offset `offset`), using
     /// `scratch` (as long as `refs`) for the partition and writing the primitive order
-    /// into `ids` (as long as `refs`).
+    /// into `ids` (as long as `refs`). `exact` tells whether `nb.bounds` is the
+    /// references' box or (below a sampled node) a box inside it.
+    #[allow(clippy::too_many_arguments)]
     fn build(
         &self,
         refs: &mut [PrimRef],
@@ -484,9 +567,15 @@ impl Builder {
         ids: &mut [u32],
         offset: usize,
         depth: usize,
-        nb: NodeBounds,
+        mut nb: NodeBounds,
+        exact: bool,
     ) -> BuildNode {
         let n = refs.len();
+        let sampled = n >= self.sample_from;
+        if !exact && !sampled {
+            // Below a sampled node: the true box, before any leaf or bin uses it.
+            nb.bounds = node_bounds(refs).bounds;
+        }
         let mut leaf = |refs: &[PrimRef]| {
             for (o, r) in ids.iter_mut().zip(refs) {
                 *o = r.id();
@@ -530,9 +619,10 @@ impl Builder {
             }
         }
         // The children's references: in `scratch` after a partition (the arrays swap
-        // roles), in `refs` after the median split.
-        let (mid, left, right, (data, spare)) = match split {
-            Some((m, l, r)) => (m, l, r, (scratch, refs)),
+        // roles), in `refs` after the median split. A sampled node's children get the
+        // sample's boxes, which are not theirs.
+        let (mid, left, right, exact_kids, (data, spare)) = match split {
+            Some((m, l, r)) => (m, l, r, !sampled, (scratch, refs)),
             None => {
                 if n <= self.opts.max_leaf {
                     return leaf(refs);
@@ -552,26 +642,33 @@ impl Builder {
                     a.centroid()[axis].total_cmp(&b.centroid()[axis])
                 });
                 let (l, r) = (node_bounds(&refs[..m]), node_bounds(&refs[m..]));
-                (m, l, r, (refs, scratch))
+                (m, l, r, true, (refs, scratch))
             }
         };
 
         let (ld, rd) = data.split_at_mut(mid);
         let (ls, rs) = spare.split_at_mut(mid);
         let (li, ri) = ids.split_at_mut(mid);
+        let e = exact_kids;
         let (l, r) = if n >= PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(ld, ls, li, offset, depth + 1, left),
-                || self.build(rd, rs, ri, offset + mid, depth + 1, right),
+                || self.build(ld, ls, li, offset, depth + 1, left, e),
+                || self.build(rd, rs, ri, offset + mid, depth + 1, right, e),
             )
         } else {
             (
-                self.build(ld, ls, li, offset, depth + 1, left),
-                self.build(rd, rs, ri, offset + mid, depth + 1, right),
+                self.build(ld, ls, li, offset, depth + 1, left, e),
+                self.build(rd, rs, ri, offset + mid, depth + 1, right, e),
             )
         };
+        // An exact box is its children's union; an inexact one is rebuilt as that.
+        let bounds = if exact {
+            nb.bounds
+        } else {
+            l.bbox().union(&r.bbox())
+        };
         BuildNode::Interior {
-            bounds: nb.bounds,
+            bounds,
             children: Box::new([l, r]),
         }
     }
@@ -601,26 +698,45 @@ impl Builder {
         let bins_n = self.opts.bins.min(refs.len().max(4));
         let cb = &nb.centroids;
         let scale = bin_scale(cb, bins_n);
+        let sampled = refs.len() >= self.sample_from;
+        // Sampled counts are weighed, so they may exceed the node's by a block.
+        let most = refs.len() + SAMPLE_BLOCK;
         if refs.len() >= PARALLEL_NODE {
-            let bins = refs
-                .par_chunks(PARALLEL_THRESHOLD)
+            let chunk = if sampled {
+                SAMPLED_CHUNK
+            } else {
+                PARALLEL_THRESHOLD
+            };
+            let mut bins = refs
+                .par_chunks(chunk)
                 .map(|chunk| {
                     let (mut bins, mut other) = (Bins::new(), Bins::new());
-                    bins.add_all_paired(&mut other, chunk, cb.min, scale, bins_n);
+                    if sampled {
+                        bins.add_sampled(&mut other, chunk, cb.min, scale, bins_n);
+                    } else {
+                        bins.add_all_paired(&mut other, chunk, cb.min, scale, bins_n);
+                    }
                     bins
                 })
                 .reduce(Bins::new, |a, b| a.merge(&b));
-            self.sweep(&bins, bins_n, nb, refs.len())
+            if sampled {
+                bins.weigh(bins_n, SAMPLE_WEIGHT);
+            }
+            self.sweep(&bins, bins_n, nb, most)
         } else {
             SCRATCH_BINS.with_borrow_mut(|[bins, other]| {
                 bins.clear(bins_n);
-                if refs.len() >= PAIRED_BINNING {
+                if sampled {
+                    other.clear(bins_n);
+                    bins.add_sampled(other, refs, cb.min, scale, bins_n);
+                    bins.weigh(bins_n, SAMPLE_WEIGHT);
+                } else if refs.len() >= PAIRED_BINNING {
                     other.clear(bins_n);
                     bins.add_all_paired(other, refs, cb.min, scale, bins_n);
                 } else {
                     bins.add_all(refs, cb.min, scale, bins_n);
                 }
-                self.sweep(bins, bins_n, nb, refs.len())
+                self.sweep(bins, bins_n, nb, most)
             })
         }
     }
@@ -1197,6 +1313,7 @@ mod tests {
         let builder = Builder {
             opts: Bvh2BuildOptions::default(),
             block_shift: Some(0),
+            sample_from: usize::MAX,
         };
         let c = builder.best_split(&src, &nb).expect("a split");
         let mut dst = src.clone();
@@ -1259,6 +1376,125 @@ mod tests {
         }
     }
 
+    /// Sampled bins against a plain reference: per axis and bin, the count (times the
+    /// weight) and the box fold of exactly the references at positions `i % 16 < 2`,
+    /// for lengths that end inside a block, on one block's first reference, and on a
+    /// whole block.
+    #[test]
+    fn sampled_bins_match_a_plain_fold_of_the_sample() {
+        let all = refs_3d(3000);
+        for len in [3000, 2993, 2977, 2976] {
+            let src = &all[..len];
+            let nb = node_bounds(src);
+            let bins_n = 16;
+            let scale = bin_scale(&nb.centroids, bins_n);
+            let mut want = vec![[(0u32, BBox::EMPTY); MAX_BINS]; 3];
+            let mut sampled = 0;
+            for (i, r) in src.iter().enumerate() {
+                if i % SAMPLE_BLOCK >= 2 {
+                    continue;
+                }
+                sampled += 1;
+                let k = bins_of(r.centroid(), nb.centroids.min, scale, bins_n);
+                for a in 0..3 {
+                    let (c, b) = &mut want[a][k[a]];
+                    *c += SAMPLE_WEIGHT;
+                    *b = b.union(&r.bounds());
+                }
+            }
+            let (mut bins, mut other) = (Bins::new(), Bins::new());
+            bins.add_sampled(&mut other, src, nb.centroids.min, scale, bins_n);
+            bins.weigh(bins_n, SAMPLE_WEIGHT);
+            for (a, want_a) in want.iter().enumerate() {
+                for (k, (count, bounds)) in want_a.iter().enumerate() {
+                    assert_eq!(bins.counts[a][k], *count, "len {len} axis {a} bin {k}");
+                    assert_eq!(box_bits(&bins.bounds(a, k)), box_bits(bounds));
+                }
+            }
+            let total: u32 = bins.counts[0].iter().sum();
+            assert_eq!(total, sampled * SAMPLE_WEIGHT, "len {len}");
+        }
+    }
+
+    /// The SAH cost of a build tree (interior nodes 1, leaves their started blocks of
+    /// `block`, each weighted by its area over the root's).
+    fn tree_sah(root: &BuildNode, block: usize) -> f64 {
+        let inv = 1.0 / root.area() as f64;
+        let mut stack = vec![root];
+        let mut cost = 0.0;
+        while let Some(n) = stack.pop() {
+            let a = n.area() as f64 * inv;
+            match n {
+                BuildNode::Leaf { count, .. } => cost += a * count.div_ceil(block) as f64,
+                BuildNode::Interior { children, .. } => {
+                    cost += a;
+                    stack.extend(children.iter());
+                }
+            }
+        }
+        cost
+    }
+
+    /// Binning a sample of the large nodes keeps the tree's SAH cost within 1 % of
+    /// binning every reference (the README reports the change at 10^6), on the
+    /// procedural mesh with the BVH8's options; every primitive is in exactly one leaf
+    /// and every node's box holds its children's.
+    #[test]
+    fn sampled_binning_keeps_the_sah_cost() {
+        let tris = crate::bench::BenchMesh::procedural(200_000).triangles;
+        let opts = Bvh2BuildOptions {
+            max_leaf: 4,
+            block_size: 4,
+            ..Bvh2BuildOptions::default()
+        };
+        let (full, _) = build_tree_sampling(&tris, opts, usize::MAX);
+        let (sampled, ids) = build_tree_sampling(&tris, opts, SAMPLED_BINNING);
+        let (full, sampled) = (full.unwrap(), sampled.unwrap());
+        let (a, b) = (tree_sah(&full, 4), tree_sah(&sampled, 4));
+        println!("SAH full {a:.4}, sampled {b:.4}");
+        assert!((b - a).abs() <= 0.01 * a, "SAH full {a}, sampled {b}");
+        let mut seen = vec![false; tris.v0.len()];
+        for &i in &ids {
+            assert!(
+                !std::mem::replace(&mut seen[i as usize], true),
+                "id {i} twice"
+            );
+        }
+        assert!(seen.iter().all(|&s| s));
+        // Every box is exact: an interior node's the union of its children's, a leaf's
+        // the union of its primitives' (sampled nodes rebuild theirs from below).
+        let mut stack = vec![&sampled];
+        let vals = |b: &BBox| [b.min.to_array(), b.max.to_array()];
+        let mut interiors = 0;
+        while let Some(n) = stack.pop() {
+            match n {
+                BuildNode::Interior { bounds, children } => {
+                    interiors += 1;
+                    let u = children[0].bbox().union(&children[1].bbox());
+                    assert_eq!(vals(bounds), vals(&u));
+                    stack.extend(children.iter());
+                }
+                BuildNode::Leaf {
+                    bounds,
+                    start,
+                    count,
+                } => {
+                    let u = ids[*start..start + count]
+                        .iter()
+                        .fold(BBox::EMPTY, |b, &i| {
+                            let pb = tris.bounds(i as usize);
+                            b.union(&BBox {
+                                min: pb.min.into(),
+                                max: pb.max.into(),
+                            })
+                        });
+                    assert_eq!(vals(bounds), vals(&u));
+                }
+            }
+        }
+        assert!(interiors > 40_000, "{interiors} interior nodes");
+    }
+
     /// The lane sweep picks the scalar sweep's split (axis, bin, cost bit for bit) and
     /// sides, on nodes of every size from 2 to 3000 references, flat ones included.
     #[test]
@@ -1279,6 +1515,7 @@ mod tests {
                     ..Bvh2BuildOptions::default()
                 },
                 block_shift: Some(bs.trailing_zeros()),
+                sample_from: usize::MAX,
             };
             for refs in &nodes {
                 let nb = node_bounds(refs);
@@ -1395,11 +1632,11 @@ mod tests {
         }
     }
 
-    /// The parallel build (nodes of at least [`PARALLEL_NODE`] references partitioned
-    /// in parallel chunks, subtrees on two threads) builds the 1-thread build's tree,
-    /// node for node, with the same primitive order, on the procedural mesh and on a
-    /// soup of random triangles, for the BVH2's and the BVH8's options; the BVH8 built
-    /// over each at both thread counts validates.
+    /// The parallel build (nodes of at least [`PARALLEL_NODE`] references sampled and
+    /// partitioned in parallel chunks, subtrees on two threads) builds the 1-thread
+    /// build's tree, node for node, with the same primitive order, on the procedural
+    /// mesh and on a soup of random triangles, for the BVH2's and the BVH8's options;
+    /// the BVH8 built over each at both thread counts validates.
     #[test]
     fn two_threads_build_the_one_thread_tree() {
         let mut x = 0x1234_5678_u32;
@@ -1474,10 +1711,12 @@ mod tests {
             let shifted = Builder {
                 opts,
                 block_shift: Some(bs.trailing_zeros()),
+                sample_from: usize::MAX,
             };
             let divided = Builder {
                 opts,
                 block_shift: None,
+                sample_from: usize::MAX,
             };
             for n in 0..100u32 {
                 assert_eq!(shifted.blocks(n), divided.blocks(n));
