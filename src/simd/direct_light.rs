@@ -104,7 +104,10 @@ pub fn spawn_ray_to_point(p: V3, p_error: V3, n: V3, q: Vec3, n_q: V3) -> (V3, V
     let o = offset_ray_origin(p, p_error, n, qv.minus(p));
     // Every lane of `n_q` finite where the sum of its coordinates is (a non-finite
     // coordinate makes it infinite or NaN; an overflow only takes the general path).
+    // `s - s` is zero exactly where `s` is finite (two compares fewer than
+    // `is_finite` on AVX2).
     let sum = n_q.x + n_q.y + n_q.z;
+    #[allow(clippy::eq_op)]
     let finite = (sum - sum).simd_eq(Packet::splat(0.0));
     let target = if !q.cmpeq(Vec3::ZERO).any() && finite.to_bitmask() == 0xffff {
         qv
@@ -280,16 +283,21 @@ mod tests {
             if case % 7 == 0 {
                 q.z = -0.0;
             }
+            let rows: Vec<[Vec3; 4]> = (0..16)
+                .map(|i| {
+                    let p = Vec3::new(unit(), unit(), unit()) * scale;
+                    let err = Vec3::new(unit().abs(), unit().abs(), unit().abs()) * scale * 1e-6;
+                    let n = Vec3::new(unit(), unit(), unit()).normalize_or(Vec3::Y);
+                    let mut nq = -(q - p).normalize_or(Vec3::X);
+                    if case % 11 == 0 && i == 3 {
+                        nq = Vec3::new(f32::INFINITY, f32::NAN, 1.0);
+                    }
+                    [p, err, n, nq]
+                })
+                .collect();
             let mut lanes = [[0.0f32; 16]; 12];
-            for i in 0..16 {
-                let p = Vec3::new(unit(), unit(), unit()) * scale;
-                let err = Vec3::new(unit().abs(), unit().abs(), unit().abs()) * scale * 1e-6;
-                let n = Vec3::new(unit(), unit(), unit()).normalize_or(Vec3::Y);
-                let mut nq = -(q - p).normalize_or(Vec3::X);
-                if case % 11 == 0 && i == 3 {
-                    nq = Vec3::new(f32::INFINITY, f32::NAN, 1.0);
-                }
-                for (k, v) in [p, err, n, nq].iter().enumerate() {
+            for (i, row) in rows.iter().enumerate() {
+                for (k, v) in row.iter().enumerate() {
                     (lanes[3 * k][i], lanes[3 * k + 1][i], lanes[3 * k + 2][i]) = (v.x, v.y, v.z);
                 }
             }
