@@ -149,7 +149,11 @@ pub(crate) fn lanes_meeting(
         );
         let query = crate::geometry::RayQuery::new(&ray)?;
         let hit = crate::geometry::intersect_sphere(&query, center, radius, ray.tmax).is_some();
-        assert_eq!(hit, lane_hits >> i & 1 == 1, "the lane twin differs on {ray:?}");
+        assert_eq!(
+            hit,
+            lane_hits >> i & 1 == 1,
+            "the lane twin differs on {ray:?}"
+        );
         hit.then_some(ray)
     })
 }
@@ -296,8 +300,12 @@ mod tests {
             // The segment of a random lane, or of the one with the least or most x.
             let xs = sl.origin.x.to_array();
             let lane = match case % 5 {
-                0 => (0..16).min_by(|&a, &b| xs[a].total_cmp(&xs[b])).unwrap_or(0),
-                1 => (0..16).max_by(|&a, &b| xs[a].total_cmp(&xs[b])).unwrap_or(0),
+                0 => (0..16)
+                    .min_by(|&a, &b| xs[a].total_cmp(&xs[b]))
+                    .unwrap_or(0),
+                1 => (0..16)
+                    .max_by(|&a, &b| xs[a].total_cmp(&xs[b]))
+                    .unwrap_or(0),
                 _ => (unit() * 16.0) as usize & 15,
             };
             let o = sl.origin.lane(lane);
@@ -338,7 +346,10 @@ mod tests {
             assert!(!sphere_clear(Vec3::new(bad, 9.0, 0.0), (g, 0.1), far, 1.0));
         }
         eprintln!("{clear} of {cases} spheres clear ({close} pushed out by < 1e-4)");
-        assert!(clear > cases / 4 && close > 500, "{clear} clear, {close} close");
+        assert!(
+            clear > cases / 4 && close > 500,
+            "{clear} clear, {close} close"
+        );
     }
 
     /// Every lane [`AxisPlane::leaving`] lets skip a triangle is a miss of the scalar

@@ -800,6 +800,9 @@ mod tests {
             }
         }
         eprintln!("{culled} of {lanes} lanes skipped, {hits} hits");
-        assert!(culled > lanes / 5 && hits > 100, "{culled} skipped, {hits} hits");
+        assert!(
+            culled > lanes / 5 && hits > 100,
+            "{culled} skipped, {hits} hits"
+        );
     }
 }
