@@ -197,8 +197,11 @@ pub fn sphere_clear_of(origins: [Vec3; 2], q: &QuadLight, center: Vec3, radius: 
 }
 
 /// The part of [`sphere_clear_of`] that depends on the origins and the light alone,
-/// computed once per shading point and light (measured: computed per sphere, it made
-/// whitted_area64 ~20 % slower, 1 thread, 5 interleaved runs).
+/// computed once per shading point and light. Measured (whitted_area64, 1 thread, 5
+/// runs interleaved with the build before the derived bound, load ~10 on 2 cores,
+/// render min/median/max ms): computed per sphere 10833/16239/17727 ->
+/// 14812/19553/21191 (a dead end); hoisted here 14410/16405/18529 ->
+/// 14443/17395/20714 (4 of 5 pairs slower, within this machine's noise).
 pub struct QuadCull {
     origins: [DVec3; 2],
     apex: DVec3,

@@ -35,9 +35,10 @@
 //!    γ6 (F² + r²)` and `|C - c0| <= γ50 (F² + r²)` (from 1-3), so `|ĉ - C| <= Δ =
 //!    γ56 (F² + r²)`. Here the root can move far: `c0` cancels where the origin is near
 //!    the sphere. The premise bounds it: say every point of the segment, the origin
-//!    included, is farther than `r + m` from `c`, `m >= γ2048 (F + r)`. Then `c0 > m (F
-//!    + r) > 2Δ`, so `ĉ, C > 0`, `t̂0` has the sign of `T'`, and `|t̂0/T' - 1| <= ρ = 3Δ/c0
-//!    + γ2`. A hit needs `T' > 0`, so `T' > tmax` (the point `T'` is within `E1 < m` of
+//!    included, is farther than `r + m` from `c`, `m >= γ2048 (F + r)`. Then
+//!    `c0 > m (F + r) > 2Δ`, so `ĉ, C > 0`, `t̂0` has the sign of `T'`, and
+//!    `|t̂0/T' - 1| <= ρ = 3Δ/c0 + γ2`. A hit needs `T' > 0`, so `T' > tmax` (the point
+//!    `T'` is within `E1 < m` of
 //!    the sphere, so not on the segment), and `t̂0 < tmax`: the along-ray gap `G = (T' -
 //!    tmax)|d|` below `ρ x`, `x = T'|d|`. With `φ(z) = |p(T') - z d/|d||² - |p(T')|²`
 //!    (convex, `φ(0) = 0`), the end has `φ(G) >= (m - E1)(2r + m + E1) >= m(2r + m)/2`.
@@ -108,7 +109,7 @@ mod tests {
         let need = clearance(-2.0, 10.0, 0.5, 1.0, 20.0).expect("in range");
         let r = 2.0 + 1.0 / (1u128 << 70) as f64;
         assert_eq!(need, r + ROOT_ERROR * (10.0 + r) + 0.5);
-        assert!(ROOT_ERROR > 1.2e-4 && ROOT_ERROR < 1.23e-4);
+        const { assert!(ROOT_ERROR > 1.2e-4 && ROOT_ERROR < 1.23e-4) };
         assert_eq!(clearance(f32::NAN, 10.0, 0.5, 1.0, 20.0), None);
         assert_eq!(clearance(f32::INFINITY, 10.0, 0.5, 1.0, 20.0), None);
         assert_eq!(clearance(1.0, f64::NAN, 0.5, 1.0, 20.0), None);
