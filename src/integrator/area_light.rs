@@ -143,7 +143,11 @@ pub(crate) fn shade_quads(
     // `quad_light`.
     let hoisted = quads.occluders.as_ref().and_then(|_| QuadSamples::new(&s));
     for (index, quad) in &quads.lights {
-        let mut near = quads.occluders.as_ref().map(|o| o.spheres_near(base, quad));
+        let origins = hoisted.as_ref().map(QuadSamples::origins);
+        let mut near = quads
+            .occluders
+            .as_ref()
+            .map(|o| o.spheres_near(base, origins, quad));
         // The light points straight into lanes (`u`, `v` padded to 16).
         hit_points_split(
             plan.sampler,
@@ -346,12 +350,13 @@ mod tests {
                 let rest = [r.tmin, r.tmax, r.time].map(f32::to_bits);
                 [a, b, c, d, e, f, rest[0], rest[1], rest[2]]
             };
+            let (slot, weight, throughput, path) = q.per_ray();
             (
                 q.rays.iter().map(ray).collect(),
-                q.slot.clone(),
-                q.weight.iter().map(bits).collect(),
-                q.throughput.iter().map(bits).collect(),
-                q.path.clone(),
+                slot,
+                weight.iter().map(bits).collect(),
+                throughput.iter().map(bits).collect(),
+                path,
             )
         })
     }

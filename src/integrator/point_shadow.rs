@@ -20,7 +20,8 @@
 //! crossing. Two culls skip tests that cannot find a hit (`simd::shadow_cull`, where
 //! each argument is stated): a lane leaving an axis-aligned triangle's plane from its
 //! origin's side (exact f32 comparisons), and a sphere clear of the group's segments
-//! (towards a point light only) by a margin ten times the sphere test's root error.
+//! (towards a point light only) by the sphere test's derived root error bound
+//! (`simd::sphere_clearance`).
 //!
 //! The sums change order: the queue path added the unblocked contributions after the
 //! wave was shaded, light by light, one at a time; here the local radiance and every
@@ -142,7 +143,7 @@ impl PointOccluders {
                 Some(l) => {
                     let (g, rho) = origin_ball(&s.origin, rest);
                     list.iter().enumerate().fold(0u32, |b, (k, &(c, r))| {
-                        b | ((!sphere_clear(l, g, rho, c, r)) as u32) << (k & 31)
+                        b | ((!sphere_clear(l, (g, rho), c, r)) as u32) << (k & 31)
                     })
                 }
                 None => u32::MAX,
@@ -325,12 +326,13 @@ mod tests {
                 let rest = [r.tmin, r.tmax, r.time].map(f32::to_bits);
                 [a, b, c, d, e, f, rest[0], rest[1], rest[2]]
             };
+            let (slot, weight, throughput, path) = q.per_ray();
             (
                 q.rays.iter().map(ray).collect(),
-                q.slot.clone(),
-                q.weight.iter().copied().map(bits).collect(),
-                q.throughput.iter().copied().map(bits).collect(),
-                q.path.clone(),
+                slot,
+                weight.into_iter().map(bits).collect(),
+                throughput.into_iter().map(bits).collect(),
+                path,
             )
         })
     }
@@ -408,7 +410,7 @@ mod tests {
                 // Terms of each camera sample: its rays' local radiance, then its
                 // unblocked shadow rays.
                 let mut terms = vec![0u32; slots];
-                for &slot in &queue.slot {
+                for slot in (0..queue.rays.len()).map(|i| queue.slot(i)) {
                     terms[slot as usize] += 1;
                 }
                 let mut queue_counts = b.rays;
@@ -445,7 +447,7 @@ mod tests {
                             culled_spheres += occluders
                                 .spheres
                                 .iter()
-                                .filter(|&&(c, r)| sphere_clear(l, g, rho, c, r))
+                                .filter(|&&(c, r)| sphere_clear(l, (g, rho), c, r))
                                 .count();
                         }
                         let settled = occluders.settle(&s, ends[light]);

@@ -17,8 +17,10 @@ use std::ops::{Index, IndexMut};
 /// follow from each ray's place in its pixel, so [`CameraRun`] holds those as four
 /// numbers and the accessors ([`slot`](RayQueue::slot), [`weight`](RayQueue::weight),
 /// [`throughput`](RayQueue::throughput), [`path`](RayQueue::path)) hand them out on
-/// demand; the per-ray arrays stay empty. Read a queue through the accessors; the
-/// arrays are written directly only for child queues (never camera runs).
+/// demand; the per-ray arrays stay empty. So the arrays are private: a queue is read
+/// through the accessors and written through [`push`](RayQueue::push),
+/// [`extend`](RayQueue::extend) and [`append_camera`](RayQueue::append_camera), which
+/// write a camera run out first where other rays join it.
 ///
 /// Measured before (bunny 1024x1024, 1 ray per pixel): writing slot, weight,
 /// throughput and path for every camera ray was 40 of the ~110 bytes the camera
@@ -27,13 +29,13 @@ use std::ops::{Index, IndexMut};
 pub(crate) struct RayQueue {
     pub rays: Vec<Ray>,
     /// Camera sample (accumulator) of the tile the ray contributes to.
-    pub slot: Vec<u32>,
+    slot: Vec<u32>,
     /// Product of the weights from the camera: what the ray's radiance is scaled by.
-    pub weight: Vec<Vec3>,
+    weight: Vec<Vec3>,
     /// Throughput for the contribution cutoff (see `ChildRay::throughput`).
-    pub throughput: Vec<Vec3>,
+    throughput: Vec<Vec3>,
     /// Path identity, which keys the random stream of the hit.
-    pub path: Vec<u64>,
+    path: Vec<u64>,
     /// `Some` while the queue holds only camera rays, whose per-ray values it implies.
     camera: Option<CameraRun>,
 }
@@ -178,6 +180,33 @@ impl RayQueue {
         self.path.extend((0..k).map(|i| run.path(i)));
     }
 
+    /// Appends rays with their values, one extend of each array (the child rays of a
+    /// lane group): `rays`, and per ray its slot, weight, throughput and path, in the
+    /// same order and number.
+    pub fn extend(
+        &mut self,
+        rays: impl IntoIterator<Item = Ray>,
+        slots: impl IntoIterator<Item = u32>,
+        weights: impl IntoIterator<Item = Vec3>,
+        throughputs: &[Vec3],
+        paths: impl IntoIterator<Item = u64>,
+    ) {
+        self.materialize();
+        self.rays.extend(rays);
+        self.slot.extend(slots);
+        self.weight.extend(weights);
+        self.throughput.extend_from_slice(throughputs);
+        self.path.extend(paths);
+        let n = self.rays.len();
+        debug_assert!(
+            self.slot.len() == n
+                && self.weight.len() == n
+                && self.throughput.len() == n
+                && self.path.len() == n,
+            "RayQueue::extend: one value of each per ray"
+        );
+    }
+
     pub fn push(&mut self, ray: Ray, slot: u32, weight: Vec3, throughput: Vec3, path: u64) {
         self.materialize();
         self.rays.push(ray);
@@ -258,6 +287,20 @@ impl<T> IndexMut<ChildKind> for PerChildKind<T> {
             ChildKind::Glossy => &mut self.glossy,
             ChildKind::Translucency => &mut self.translucency,
         }
+    }
+}
+
+/// Test helper: every ray's slot, weight, throughput and path, through the accessors.
+#[cfg(test)]
+impl RayQueue {
+    pub(crate) fn per_ray(&self) -> (Vec<u32>, Vec<Vec3>, Vec<Vec3>, Vec<u64>) {
+        let n = self.rays.len();
+        (
+            (0..n).map(|i| self.slot(i)).collect(),
+            (0..n).map(|i| self.weight(i)).collect(),
+            (0..n).map(|i| self.throughput(i)).collect(),
+            (0..n).map(|i| self.path(i)).collect(),
+        )
     }
 }
 

@@ -572,16 +572,15 @@ impl Children {
         let q = q.get_or_insert_with(RayQueue::default);
         let lanes = &self.lane[..n];
         let rays = lane_rays(origin, dir, Packet::splat(f32::INFINITY), &paths.time);
-        q.rays.extend(lanes.iter().map(|&i| rays[i & 15]));
-        q.slot.extend(lanes.iter().map(|&i| paths.slot[i]));
         let weight = |i: usize| {
             let w = &paths.weight;
             Vec3::new(w[0][i], w[1][i], w[2][i])
         };
-        q.weight
-            .extend(lanes.iter().zip(&self.w).map(|(&i, &w)| weight(i) * w));
-        q.throughput.extend_from_slice(&self.tp[..n]);
-        q.path.extend(
+        q.extend(
+            lanes.iter().map(|&i| rays[i & 15]),
+            lanes.iter().map(|&i| paths.slot[i]),
+            lanes.iter().zip(&self.w).map(|(&i, &w)| weight(i) * w),
+            &self.tp[..n],
             lanes
                 .iter()
                 .zip(&self.branch)
@@ -780,10 +779,7 @@ mod tests {
                 let ab: Vec<_> = a.rays.iter().map(ray_bits).collect();
                 let bb: Vec<_> = b.rays.iter().map(ray_bits).collect();
                 assert_eq!(ab, bb, "{name}: {kind:?} rays");
-                assert_eq!(a.slot, b.slot);
-                assert_eq!(a.weight, b.weight);
-                assert_eq!(a.throughput, b.throughput);
-                assert_eq!(a.path, b.path);
+                assert!(a.per_ray() == b.per_ray(), "{name}: {kind:?} values");
                 match kind {
                     ChildKind::Reflection => children[0] += a.rays.len(),
                     ChildKind::Refraction => children[1] += a.rays.len(),

@@ -34,9 +34,10 @@ use crate::simd::glass_shadow::settle_gathered;
 use crate::simd::kernels::RayLanes;
 use crate::simd::kernels::sphere_lanes;
 use crate::simd::lanes3::V3;
+use crate::simd::sphere_clearance::{F64_SLACK, clearance, gamma64};
 use crate::simd::tiny::{TinyGroup, TrianglePlane, lane_shear_keys};
 use crate::stats::RayCounts;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// What a shadow ray blocked by the sphere set (and by no triangle) transmits.
 #[derive(Clone, Copy)]
@@ -168,67 +169,143 @@ pub struct NearSpheres {
     sides: (Option<Vec3>, [Option<f32>; TINY_MAX_PRIMITIVES]),
 }
 
-/// Whether a plane separates the sphere `(center, radius)` from every segment between
-/// `origin` and a point of the quad light `q`, with a margin of `1e-4` of the scene's
-/// scale here (distances and coordinates): one of the pyramid's faces (the planes
-/// through `origin` and each light edge, the light's own plane), or the plane through
-/// `origin` across the direction to the centre with the whole light behind it.
+/// Whether the sphere `(center, radius)` is clear of every shadow segment of a shading
+/// point towards the quad light `q`, in the sense of `simd::sphere_clearance`: the
+/// sphere test finds no root on any of them. `origins` are the segments' two possible
+/// origins (`QuadSamples::origins`: each segment starts at one of them, bit for bit).
 ///
-/// Why the sphere lane test then finds no root on these rays: a shadow ray's origin
-/// lies within `p_error` of the shading point's base point (its offset) and its end
-/// within the light's point error of the light quad, both far below the margin, so the
-/// ray stays inside the margin-widened pyramid and clear of the sphere by at least the
-/// margin; the test's roots carry errors of a few f32 roundings of the same scale
-/// (`|o - center|`, `|d|`), a hundred times smaller, so its discriminant stays negative
-/// or its roots outside the segment.
-pub fn sphere_clear_of(origin: Vec3, q: &QuadLight, center: Vec3, radius: f32) -> bool {
-    let f = center - origin;
-    let dist = f.length();
-    let corners = [
-        q.corner,
-        q.corner + q.edge1,
-        q.corner + q.edge1 + q.edge2,
-        q.corner + q.edge2,
-    ];
-    let rel = corners.map(|c| c - origin);
-    let reach = rel.iter().fold(0.0f32, |m, r| m.max(r.length()));
-    let scale = dist + radius + reach + origin.abs().max_element() + center.abs().max_element();
-    let m = 1e-4 * scale;
-    // NaN anywhere: not clear.
-    if !m.is_finite() || dist <= radius + m {
-        return false;
-    }
-    // The light entirely behind the plane through `origin` across `f`.
-    let axis = f / dist;
-    if rel.iter().all(|r| axis.dot(*r) < -m) {
-        return true;
-    }
-    let inside = (rel[0] + rel[1] + rel[2] + rel[3]) * 0.25;
-    for i in 0..4 {
-        let n = rel[i].cross(rel[(i + 1) % 4]);
-        let len = n.length();
-        let min = 1e-3 * rel[i].length() * rel[(i + 1) % 4].length();
-        if len.is_nan() || min.is_nan() || len <= min {
-            continue;
+/// Where the segments lie: each ends at `o + tmax d`, `tmax <= 1`, on `[o, o + d]`;
+/// `o + d` misses the offset target by the rounding of `d = fl(target - o)` (at most
+/// `u |target - o|`), and the target (`offset_ray_origin` of the light point) lies
+/// within `δ = γ8 |A| + (1 + γ32) |q.p_error|` of the exact quad, `A = |corner| +
+/// |edge1| + |edge2|` (the light point's three roundings, the offset along the unit
+/// normal by `|n|·p_error (1 + γ8)` and its roundings, the one-float step). So every
+/// segment point is within `δ + u L` of the convex hull `H` of the two origins and the
+/// quad's corners (`L` bounds `|target - o|`). A plane through `apex` (between the
+/// origins) or through the light's corner, unit normal `n` towards the centre, bounds
+/// `H` by the largest `n·(v - p0)` over its vertices; the centre's height above that
+/// minus `δ + u L` is a lower bound on every segment point's distance from it. Clear
+/// where one of these planes gives more than `sphere_clearance::clearance`: the plane
+/// across the direction to the centre, the four through the apex and a light edge, the
+/// light's own plane. In f64, from the f32 inputs.
+///
+/// Before (to 2026-11-24): a margin of `1e-4` of the scene's scale, around the
+/// shading point's base point; the adversarial test found it wrong for negative radii
+/// (the sphere test squares the radius).
+pub fn sphere_clear_of(origins: [Vec3; 2], q: &QuadLight, center: Vec3, radius: f32) -> bool {
+    QuadCull::new(origins, q).is_some_and(|cull| cull.clear(center, radius))
+}
+
+/// The part of [`sphere_clear_of`] that depends on the origins and the light alone,
+/// computed once per shading point and light. Measured (whitted_area64, 1 thread, 5
+/// runs interleaved with the build before the derived bound, load ~10 on 2 cores,
+/// render min/median/max ms): computed per sphere 10833/16239/17727 ->
+/// 14812/19553/21191 (a dead end); hoisted here 14410/16405/18529 ->
+/// 14443/17395/20714 (4 of 5 pairs slower, within this machine's noise).
+pub struct QuadCull {
+    origins: [DVec3; 2],
+    apex: DVec3,
+    /// The hull's vertices: the two origins and the light's corners.
+    vertices: [DVec3; 6],
+    /// Per candidate plane (the four through the apex and a light edge, the light's
+    /// own): a point on it, its unit normal `n` (zero where degenerate) and the largest
+    /// `n·(v - p0)` and `-n·(v - p0)` over the vertices.
+    planes: [(DVec3, DVec3, f64, f64); 5],
+    /// `δ + u L` plus the f64 slack of everything but the centre.
+    slack: f64,
+    shortest: f64,
+    longest: f64,
+}
+
+impl QuadCull {
+    /// `None` (nothing clear) for non-finite inputs.
+    pub fn new(origins: [Vec3; 2], q: &QuadLight) -> Option<QuadCull> {
+        const U: f64 = 1.0 / (1u64 << 24) as f64;
+        // Non-finite inputs: not clear (the folds below would skip a NaN).
+        let finite = [
+            origins[0], origins[1], q.corner, q.edge1, q.edge2, q.p_error,
+        ]
+        .iter()
+        .all(|v| v.is_finite());
+        if !finite {
+            return None;
         }
-        let n = if n.dot(inside) > 0.0 {
-            -n / len
-        } else {
-            n / len
+        let o = origins.map(|o| o.as_dvec3());
+        let (k, e1, e2) = (q.corner.as_dvec3(), q.edge1.as_dvec3(), q.edge2.as_dvec3());
+        let corners = [k, k + e1, k + e1 + e2, k + e2];
+        let apex = (o[0] + o[1]) * 0.5;
+        let a = (q.corner.abs() + q.edge1.abs() + q.edge2.abs()).as_dvec3();
+        let delta =
+            gamma64(8.0) * a.length() + (1.0 + gamma64(32.0)) * q.p_error.as_dvec3().length();
+        let reach = corners
+            .iter()
+            .flat_map(|v| o.iter().map(move |o| (*v - *o).length()))
+            .fold(0.0f64, f64::max);
+        let longest = (reach + delta) * (1.0 + 2.0 * U);
+        let mags = [apex, k, e1, e2]
+            .iter()
+            .fold(reach, |m, v| m + v.abs().max_element());
+        // Every segment is at least as long as its origin's height above the light's
+        // plane.
+        let normal = e1.cross(e2).normalize_or_zero();
+        let shortest = o
+            .iter()
+            .map(|o| normal.dot(*o - k).abs())
+            .fold(f64::INFINITY, f64::min)
+            - delta;
+        let vertices = [o[0], o[1], corners[0], corners[1], corners[2], corners[3]];
+        let plane = |n: DVec3, p0: DVec3| {
+            let n = n.normalize_or_zero();
+            let (up, down) = vertices.iter().fold((f64::MIN, f64::MIN), |(u, d), v| {
+                let h = n.dot(*v - p0);
+                (u.max(h), d.max(-h))
+            });
+            (p0, n, up, down)
         };
-        if n.dot(f) > radius + m {
+        let side = |i: usize| plane((corners[i] - apex).cross(corners[(i + 1) % 4] - apex), apex);
+        Some(QuadCull {
+            origins: o,
+            apex,
+            vertices,
+            planes: [side(0), side(1), side(2), side(3), plane(normal, k)],
+            slack: delta + U * longest + F64_SLACK * mags,
+            shortest: shortest * (1.0 - 2.0 * U),
+            longest,
+        })
+    }
+
+    /// [`sphere_clear_of`] for the origins and light of `self`.
+    pub fn clear(&self, center: Vec3, radius: f32) -> bool {
+        if !center.is_finite() || !radius.is_finite() {
+            return false;
+        }
+        let c = center.as_dvec3();
+        let far = self
+            .origins
+            .iter()
+            .map(|o| (c - *o).length())
+            .fold(0.0f64, f64::max);
+        let slack = self.slack + F64_SLACK * (c.abs().max_element() + far);
+        let Some(need) = clearance(radius, far, slack, self.shortest, self.longest) else {
+            return false;
+        };
+        // The plane across the direction to the centre.
+        let axis = (c - self.apex).normalize_or_zero();
+        let top = self
+            .vertices
+            .iter()
+            .fold(f64::MIN, |m, v| m.max(axis.dot(*v - self.apex)));
+        // A zero normal gives `0 - top > need`: false (`top >= 0`, an origin each side).
+        if axis.dot(c - self.apex) - top > need {
             return true;
         }
+        self.planes.iter().any(|&(p0, n, up, down)| {
+            let h = n.dot(c - p0);
+            // Oriented towards the centre: `n` with its top, or `-n` with its.
+            let (h, top) = if h < 0.0 { (-h, down) } else { (h, up) };
+            h - top > need
+        })
     }
-    // Beyond the light's plane, on the far side from `origin`.
-    let side = q.normal.dot(rel[0]);
-    if side.abs() > m {
-        let n = if side > 0.0 { q.normal } else { -q.normal };
-        if n.dot(center - q.corner) > radius + m {
-            return true;
-        }
-    }
-    false
 }
 
 /// The opaque spheres, the glass spheres and the glass's transmission.
@@ -305,12 +382,20 @@ impl LaneOccluders {
         })
     }
 
-    /// The spheres that a segment from (about) `base` to a point of the quad light `q`
-    /// may come near: all but those a plane separates from every such segment (see
-    /// [`sphere_clear_of`]); one bit per sphere of the scene's list, of the opaque and
-    /// of the glass list.
-    pub fn spheres_near(&self, base: Vec3, q: &QuadLight) -> NearSpheres {
-        let near = |&(c, r): &(Vec3, f32)| !sphere_clear_of(base, q, c, r);
+    /// The spheres that a segment from `origins` (`QuadSamples::origins`: each
+    /// segment starts at one of the two) to a point of the quad light `q` may come
+    /// near: all but those [`sphere_clear_of`] finds clear (all where `origins` is
+    /// `None`); one bit per sphere of the scene's list, of the opaque and of the glass
+    /// list. `base` (the shading point's base point) decides which triangle planes are
+    /// tried.
+    pub fn spheres_near(
+        &self,
+        base: Vec3,
+        origins: Option<[Vec3; 2]>,
+        q: &QuadLight,
+    ) -> NearSpheres {
+        let cull = origins.and_then(|o| QuadCull::new(o, q));
+        let near = |&(c, r): &(Vec3, f32)| !cull.as_ref().is_some_and(|cull| cull.clear(c, r));
         let all = self
             .spheres
             .iter()
@@ -536,11 +621,13 @@ mod tests {
             let radius = 0.2 + unit() * 1.2;
             let p = Vec3::new(unit() - 0.5, 0.0, unit() - 0.5) * 16.0;
             cases += 1;
-            if !sphere_clear_of(p, &q, center, radius) {
+            let p_error = Vec3::splat(1e-6);
+            let origins = [Vec3::Y, -Vec3::Y]
+                .map(|w| crate::geometry::offset_ray_origin(p, p_error, Vec3::Y, w));
+            if !sphere_clear_of(origins, &q, center, radius) {
                 continue;
             }
             clear += 1;
-            let p_error = Vec3::splat(1e-6);
             for _ in 0..64 {
                 let point = q.corner + q.edge1 * unit() + q.edge2 * unit();
                 let ray =
@@ -554,5 +641,134 @@ mod tests {
         }
         eprintln!("{clear} of {cases} spheres clear of the light");
         assert!(clear > 500 && clear < cases);
+    }
+
+    /// Adversarial cases for [`sphere_clear_of`]: wherever it says clear, neither the
+    /// scalar sphere test nor its lane twin finds a root on any light sample's shadow
+    /// ray, built as the renderer builds them (`QuadSamples::lanes`, both origins):
+    /// scenes of scale 1e-3, 1 and 1e4, shifted to 1e5 from the origin or not, tiny
+    /// spheres (1e-7 and 1e-3 of the scale) and large ones, spheres placed tangent to
+    /// the segment towards a corner, an edge point or a random light point, pushed out
+    /// by 1e-1 down to 1e-9 of its length and slid along it past both ends, a few ulps
+    /// of tangency, thin and degenerate quads, negative radii; the samples include the
+    /// quad's corners and edge midpoints. Non-finite inputs are never clear.
+    #[test]
+    fn sphere_clear_of_holds_against_adversarial_spheres() {
+        use crate::simd::direct_light::{Highlight, SurfaceLanes};
+        use crate::simd::quad_samples::QuadSamples;
+        fn r3(unit: &mut impl FnMut() -> f32, s: f32) -> Vec3 {
+            Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s
+        }
+        let mut next = xorshift64(0x6a09_e667_f3bc_c908);
+        let (mut cases, mut clear, mut close, mut rays) = (0usize, 0usize, 0usize, 0usize);
+        let hl = Highlight {
+            specular: Vec3::ZERO,
+            shininess: 1.0,
+        };
+        for case in 0..24_000 {
+            let mut unit = || (next() >> 40) as f32 / (1u64 << 24) as f32;
+            let scale = [1e-3f32, 1.0, 1e4][case % 3];
+            let shift = if case % 6 < 3 {
+                Vec3::ZERO
+            } else {
+                Vec3::new(1e5, -3e4, 7e4) * scale
+            };
+            let corner = shift + (r3(&mut unit, 8.0) + Vec3::Y * 5.0) * scale;
+            let edge1 = r3(&mut unit, 4.0) * scale;
+            let edge2 = match case % 11 {
+                0 => Vec3::ZERO,
+                1 => edge1 * 0.5,
+                2 => edge1.cross(Vec3::Y).normalize_or_zero() * 1e-6 * scale,
+                _ => r3(&mut unit, 4.0) * scale,
+            };
+            let q = QuadLight::new(corner, edge1, edge2, Vec3::ONE);
+            let p = shift + r3(&mut unit, 16.0) * scale;
+            let ng = r3(&mut unit, 2.0).normalize_or(Vec3::Y);
+            let p_error = crate::geometry::gamma(5) * p.abs() + r3(&mut unit, 1e-6).abs() * scale;
+            let s = SurfaceLanes {
+                p: V3::splat(p),
+                p_error: V3::splat(p_error),
+                ng: V3::splat(ng),
+                ns: V3::splat(ng),
+                base: V3::splat(p),
+                smooth: Packet::splat(0.0),
+                wo: V3::splat(ng),
+                albedo: V3::splat(Vec3::ONE),
+            };
+            let fast = QuadSamples::new(&s).expect("a unit normal");
+            // The light points: corners, edge midpoints, then random ones.
+            let fixed = [
+                (0.0, 0.0),
+                (1.0, 0.0),
+                (0.0, 1.0),
+                (1.0, 1.0),
+                (0.5, 0.0),
+                (0.0, 0.5),
+                (1.0, 0.5),
+                (0.5, 1.0),
+            ];
+            let mut uv: Vec<(f32, f32)> = fixed.to_vec();
+            uv.extend((0..56).map(|_| (unit(), unit())));
+            // The sphere: tangent to one segment, or anywhere.
+            let (pu, pv) = uv[(unit() * uv.len() as f32) as usize % uv.len()];
+            let target = q.corner + q.edge1 * pu + q.edge2 * pv;
+            let radius = [1e-7f32, 1e-3, 0.05, 0.8][case / 4 % 4] * scale;
+            let push = 10f32.powf(-1.0 - 8.0 * unit());
+            let center = match case % 4 {
+                3 => shift + (r3(&mut unit, 12.0) + Vec3::Y * 2.0) * scale,
+                k => {
+                    let along = [-0.05, 0.0, unit(), 1.0, 1.05][(case / 16 + k) % 5];
+                    let seg = target - p;
+                    let side = seg.cross(r3(&mut unit, 1.0)).normalize_or(Vec3::X);
+                    let out = if case % 13 == 0 {
+                        // A few ulps of the distance from tangency.
+                        radius * (1.0 + (case / 13 % 8) as f32 * f32::EPSILON)
+                    } else {
+                        radius + push * seg.length()
+                    };
+                    p + seg * along + side * out
+                }
+            };
+            let radius = if case % 17 == 0 { -radius } else { radius };
+            cases += 1;
+            if !sphere_clear_of(fast.origins(), &q, center, radius) {
+                continue;
+            }
+            clear += 1;
+            close += (case % 4 != 3 && push < 1e-4) as usize;
+            for c in (0..uv.len()).step_by(16) {
+                let u = Packet::new(std::array::from_fn(|i| uv[c + i].0));
+                let v = Packet::new(std::array::from_fn(|i| uv[c + i].1));
+                let sl = fast.lanes(&s, &hl, &q, u, v, 64.0, 0xffff);
+                rays += 16;
+                if let Some(ray) = crate::simd::shadow_cull::lanes_meeting(&sl, center, radius) {
+                    panic!(
+                        "case {case}: {ray:?} meets the sphere {center} {radius} said clear \
+                         of {q:?} from {p}"
+                    );
+                }
+            }
+        }
+        // Non-finite inputs.
+        let q = QuadLight::new(Vec3::Y * 4.0, Vec3::X, Vec3::Z, Vec3::ONE);
+        for bad in [f32::NAN, f32::INFINITY, -f32::INFINITY] {
+            let far = Vec3::new(0.0, -50.0, 0.0);
+            let o = [Vec3::ZERO, Vec3::ZERO];
+            assert!(!sphere_clear_of(o, &q, far, bad));
+            assert!(!sphere_clear_of(o, &q, Vec3::new(bad, -50.0, 0.0), 1.0));
+            assert!(!sphere_clear_of(
+                [Vec3::new(0.0, bad, 0.0); 2],
+                &q,
+                far,
+                1.0
+            ));
+            let nq = QuadLight::new(Vec3::new(bad, 4.0, 0.0), Vec3::X, Vec3::Z, Vec3::ONE);
+            assert!(!sphere_clear_of(o, &nq, far, 1.0));
+        }
+        eprintln!("{clear} of {cases} spheres clear ({close} pushed out by < 1e-4), {rays} rays");
+        assert!(
+            clear > cases / 4 && close > 500,
+            "{clear} clear, {close} close"
+        );
     }
 }

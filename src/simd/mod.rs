@@ -29,6 +29,7 @@ pub mod ray_gather;
 pub mod ray_store;
 pub mod shadow_cull;
 pub mod specular;
+pub mod sphere_clearance;
 pub mod surface;
 pub mod tiny;
 pub mod trig;

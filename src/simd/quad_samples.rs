@@ -14,6 +14,7 @@ use super::Packet;
 use super::direct_light::{Highlight, QuadLight, ShadowLanes, SurfaceLanes, reflectance};
 use super::lanes3::{V3, offset_ray_origin};
 use crate::geometry::SPAWN_TO_ERROR;
+use glam::Vec3;
 
 /// The per-shading-point part of `quad_light`: the two possible shadow-ray origins.
 #[derive(Clone, Copy, Debug)]
@@ -40,6 +41,12 @@ impl QuadSamples {
         } else {
             None
         }
+    }
+
+    /// The two origins (lane 0 of each): every shadow ray of [`lanes`](Self::lanes)
+    /// starts at one of them, bit for bit.
+    pub fn origins(&self) -> [Vec3; 2] {
+        [self.plain.lane(0), self.flipped.lane(0)]
     }
 
     /// `quad_light(s, hl, q, u, v, samples, active)`, bit for bit.
@@ -93,7 +100,6 @@ mod tests {
     use super::*;
     use crate::simd::direct_light::quad_light;
     use crate::test_rng::xorshift64;
-    use glam::Vec3;
 
     /// [`QuadSamples::lanes`] against `quad_light`, every field bit for bit (origin,
     /// direction, extent, contribution, mask): random shading points with random

@@ -1,13 +1,18 @@
 //! Culls for the shadow rays of a lane group of shading points towards one point or
 //! directional light in a tiny scene (`integrator::point_shadow`): which lanes cannot
 //! meet a triangle whose plane is axis-aligned ([`AxisPlane`]), and which spheres no
-//! segment of the group can come near ([`origin_ball`], [`sphere_clear`]). Each says
+//! segment of the group can come near ([`origin_ball`], [`sphere_clear`], with the
+//! derived bound of `sphere_clearance`). Each says
 //! "no hit" only where the lane kernels (`TinyGroup::triangle_blocks`, `sphere_lanes`)
 //! find none, so skipping them leaves every lane's answer unchanged.
 
 use super::lanes3::V3;
+use super::sphere_clearance::{F64_SLACK, clearance};
 use super::{Lanes, Packet};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+
+/// `u = 2^-24`, the f32 unit roundoff.
+const U: f64 = 1.0 / (1u64 << 24) as f64;
 
 /// A triangle whose three corners share one coordinate exactly (`x_axis = at`): the
 /// Whitted floor. A ray with `o_axis >= at` and `d_axis > 0` (or `o_axis <= at` and
@@ -52,10 +57,11 @@ impl AxisPlane {
 }
 
 /// `(g, rho)`: the centre of the bounding box of the origins of the lanes in `live`
-/// (not empty, finite origins: the valid rays) and its half diagonal, so that every such origin lies within `rho` of
-/// `g` (rounding aside: `sphere_clear`'s margin covers it).
+/// (not empty, finite origins: the valid rays) and its half diagonal, in f64, so that
+/// every such origin lies within `rho` of `g` (the midpoint of two f32 values is exact
+/// in f64; `rho` carries a few f64 roundings, which `sphere_clear`'s slack covers).
 #[inline(always)]
-pub fn origin_ball(o: &V3, live: u32) -> (Vec3, f32) {
+pub fn origin_ball(o: &V3, live: u32) -> (DVec3, f64) {
     let first = live.trailing_zeros() as usize & 15;
     let fill = <Packet as Lanes>::mask_from_bits(live);
     let v = o.lane(first);
@@ -70,33 +76,36 @@ pub fn origin_ball(o: &V3, live: u32) -> (Vec3, f32) {
             .fold((a[0], a[0]), |(lo, hi), &v| (lo.min(v), hi.max(v)))
     };
     let ((lx, hx), (ly, hy), (lz, hz)) = (range(x), range(y), range(z));
-    let (lo, hi) = (Vec3::new(lx, ly, lz), Vec3::new(hx, hy, hz));
+    let (lo, hi) = (
+        DVec3::new(lx as f64, ly as f64, lz as f64),
+        DVec3::new(hx as f64, hy as f64, hz as f64),
+    );
     ((lo + hi) * 0.5, (hi - lo).length() * 0.5)
 }
 
 /// Whether the sphere `(center, radius)` is clear of every shadow segment of a group
-/// whose origins lie within `rho` of `g` and which all end at `light` (`spawn_ray_to`
-/// towards a point light: the target is the light's position, unoffset).
+/// whose origins lie within `rho` of `g` (`origin_ball`) and which all end at `light`
+/// (`spawn_ray_to` towards a point light: the target is the light's position,
+/// unoffset, `tmax <= 1`), in the sense of [`clearance`]: the sphere test finds no root
+/// on any of them.
 ///
-/// The segments lie in the convex hull of the origins and `light`, and a hull point
-/// `light + s (o - light)` is within `s rho <= rho` of `light + s (g - light)`: so every
-/// segment point is at least `dist(center, [light, g]) - rho` from the centre. Clear
-/// when that exceeds `radius + m`, `m = 1e-2 sqrt(radius S) + 1e-4 S`, `S` a bound on
-/// every length involved (`|center - light| + |g - light| + rho + radius` plus the
-/// coordinates' magnitudes).
+/// The exact segments `[o, light]` lie in the convex hull of the ball and `light`: a
+/// point `light + s (o - light)` is within `s rho <= rho` of `light + s (g - light)`.
+/// The rays' own segments `[o, o + tmax d]` lie on `[o, o + d]`, whose end misses
+/// `light` by the rounding of `d = fl(light - o)`, at most `u |light - o|`. So every
+/// point of every segment is at least `dist(center, [g, light]) - rho - u L` from the
+/// centre (`L = |light - g| + rho` bounds `|light - o|`), computed here in f64; clear
+/// where that exceeds `clearance(radius, |center - g| + rho, ...)`: the radius plus the
+/// sphere test's derived root error (no tuned margin).
 ///
-/// Why `m` suffices (first order, u = 2^-24): the distance, the ball and the ray's
-/// rounded direction (`d = fl(light - o)`, the ray ends within `u |d|` per component of
-/// the exact segment) are off by a few `u S`, far below `1e-4 S`. The lane sphere test
-/// then finds a root on a segment only where its computed roots move a point of the
-/// sphere by more than the margin: the roots are `b/a ± sqrt(r² - |l|²)/|d|` along the
-/// ray, `b/a` carries a few `u S`, and the discriminant's `r² - |l|²` at most about
-/// `16 u r S` (`l` is `f` minus its projection, `|f| <= S`), whose square root,
-/// `4 sqrt(u r S)` ≈ `1e-3 sqrt(r S)` at a near tangent, is a tenth of the first term
-/// of `m`.
-pub fn sphere_clear(light: Vec3, g: Vec3, rho: f32, center: Vec3, radius: f32) -> bool {
-    let w = g - light;
-    let v = center - light;
+/// Before (to 2026-11-24): a margin `1e-2 sqrt(radius S) + 1e-4 S` from a first-order
+/// argument; the adversarial test found it wrong for negative radii (the sphere test
+/// squares the radius), and the derivation shows the square-root term unneeded: a
+/// root's error along a near-tangent ray moves its point along the sphere, not off it.
+pub fn sphere_clear(light: Vec3, (g, rho): (DVec3, f64), center: Vec3, radius: f32) -> bool {
+    let (l, c) = (light.as_dvec3(), center.as_dvec3());
+    let w = g - l;
+    let v = c - l;
     let ww = w.dot(w);
     let s = if ww > 0.0 {
         (v.dot(w) / ww).clamp(0.0, 1.0)
@@ -104,11 +113,49 @@ pub fn sphere_clear(light: Vec3, g: Vec3, rho: f32, center: Vec3, radius: f32) -
         0.0
     };
     let dist = (v - w * s).length();
-    let big = light.abs().max_element() + center.abs().max_element() + g.abs().max_element();
-    let scale = v.length() + ww.sqrt() + rho + radius + big;
-    let m = 1e-2 * (radius * scale).sqrt() + 1e-4 * scale;
-    // NaN anywhere: not clear.
-    m.is_finite() && dist > radius + rho + m
+    let len = ww.sqrt();
+    let longest = (len + rho) * (1.0 + 2.0 * U);
+    let mags = l.abs().max_element() + c.abs().max_element() + g.abs().max_element() + rho;
+    let slack = rho + U * longest + F64_SLACK * (mags + len + v.length());
+    let far = (c - g).length() + rho;
+    let shortest = (len - rho) * (1.0 - 2.0 * U);
+    // NaN anywhere: not clear (`clearance` refuses it, and NaN fails `>`).
+    clearance(radius, far, slack, shortest, longest).is_some_and(|need| dist > need)
+}
+
+/// The first lane of `s` (valid rays only, whatever `s.mask` says) on which the
+/// scalar sphere test or its lane twin finds a root: the rays the renderer would
+/// test if the cull did not skip the sphere.
+#[cfg(test)]
+pub(crate) fn lanes_meeting(
+    s: &super::direct_light::ShadowLanes,
+    center: Vec3,
+    radius: f32,
+) -> Option<crate::geometry::Ray> {
+    let lanes = super::kernels::RayLanes {
+        o: [s.origin.x, s.origin.y, s.origin.z],
+        d: [s.dir.x, s.dir.y, s.dir.z],
+        tmin: Packet::splat(0.0),
+    };
+    let keys = super::tiny::lane_shear_keys(&lanes, s.tmax);
+    let valid = keys.iter().fold(0, |a, &k| a | k);
+    let lane_hits = super::kernels::sphere_lanes(&lanes, center, radius, s.tmax, valid).1;
+    (0..16).find_map(|i| {
+        let ray = crate::geometry::Ray::segment(
+            s.origin.lane(i),
+            s.dir.lane(i),
+            0.0,
+            s.tmax.to_array()[i],
+        );
+        let query = crate::geometry::RayQuery::new(&ray)?;
+        let hit = crate::geometry::intersect_sphere(&query, center, radius, ray.tmax).is_some();
+        assert_eq!(
+            hit,
+            lane_hits >> i & 1 == 1,
+            "the lane twin differs on {ray:?}"
+        );
+        hit.then_some(ray)
+    })
 }
 
 #[cfg(test)]
@@ -176,7 +223,7 @@ mod tests {
             let live = if case % 2 == 0 { 0xffff } else { 0x0ff0 };
             let (g, rho) = origin_ball(&lanes, live);
             cases += 1;
-            if !sphere_clear(light, g, rho, center, radius) {
+            if !sphere_clear(light, (g, rho), center, radius) {
                 continue;
             }
             clear += 1;
@@ -196,6 +243,113 @@ mod tests {
         }
         eprintln!("{clear} of {cases} spheres clear of their group, {grazing} grazing");
         assert!(clear > 1000 && clear < cases && grazing > 300);
+    }
+
+    /// Adversarial cases for [`sphere_clear`]: wherever it says a sphere is clear of a
+    /// group, neither the scalar sphere test nor its lane twin finds a root on any of
+    /// the group's shadow rays, built as the renderer builds them (`point_light`):
+    /// scenes of scale 1e-3, 1 and 1e4, shifted to 1e5 from the origin or not, groups
+    /// of one point and of points spread up to 8 units of the scale, tiny spheres (1e-7
+    /// and 1e-3 of the scale) and large ones placed tangent to the segment of a random
+    /// or an extreme lane (pushed out by 1e-1 down to 1e-9 of its length, slid past
+    /// both ends), a few ulps of tangency, negative radii. Non-finite inputs are never
+    /// clear.
+    #[test]
+    fn sphere_clear_holds_against_adversarial_spheres() {
+        use crate::simd::direct_light::{Highlight, SurfaceLanes, point_light};
+        fn r3(unit: &mut impl FnMut() -> f32, s: f32) -> Vec3 {
+            Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s
+        }
+        let mut next = xorshift64(0x3c6e_f372_fe94_f82b);
+        let (mut cases, mut clear, mut close) = (0usize, 0usize, 0usize);
+        let hl = Highlight {
+            specular: Vec3::ZERO,
+            shininess: 1.0,
+        };
+        for case in 0..40_000 {
+            let mut unit = || (next() >> 40) as f32 / (1u64 << 24) as f32;
+            let scale = [1e-3f32, 1.0, 1e4][case % 3];
+            let shift = if case % 6 < 3 {
+                Vec3::ZERO
+            } else {
+                Vec3::new(1e5, -3e4, 7e4) * scale
+            };
+            let light = shift + (r3(&mut unit, 20.0) + Vec3::Y * 8.0) * scale;
+            let g0 = shift + r3(&mut unit, 16.0) * scale;
+            let spread = [0.0f32, 1e-6, 0.3, 8.0][case / 3 % 4] * scale;
+            let points: [Vec3; 16] = std::array::from_fn(|_| g0 + r3(&mut unit, spread));
+            let normals: [Vec3; 16] =
+                std::array::from_fn(|_| r3(&mut unit, 2.0).normalize_or(Vec3::Y));
+            let lanes = |v: &[Vec3; 16]| V3 {
+                x: Packet::new(v.map(|p| p.x)),
+                y: Packet::new(v.map(|p| p.y)),
+                z: Packet::new(v.map(|p| p.z)),
+            };
+            let errors = points.map(|p| crate::geometry::gamma(5) * p.abs());
+            let s = SurfaceLanes {
+                p: lanes(&points),
+                p_error: lanes(&errors),
+                ng: lanes(&normals),
+                ns: lanes(&normals),
+                base: lanes(&points),
+                smooth: Packet::splat(0.0),
+                wo: lanes(&normals),
+                albedo: V3::splat(Vec3::ONE),
+            };
+            let sl = point_light(&s, &hl, light, Vec3::ONE, 0xffff);
+            // The segment of a random lane, or of the one with the least or most x.
+            let xs = sl.origin.x.to_array();
+            let lane = match case % 5 {
+                0 => (0..16)
+                    .min_by(|&a, &b| xs[a].total_cmp(&xs[b]))
+                    .unwrap_or(0),
+                1 => (0..16)
+                    .max_by(|&a, &b| xs[a].total_cmp(&xs[b]))
+                    .unwrap_or(0),
+                _ => (unit() * 16.0) as usize & 15,
+            };
+            let o = sl.origin.lane(lane);
+            let radius = [1e-7f32, 1e-3, 0.05, 0.8][case / 12 % 4] * scale;
+            let push = 10f32.powf(-1.0 - 8.0 * unit());
+            let center = if case % 7 == 6 {
+                shift + r3(&mut unit, 12.0) * scale
+            } else {
+                let along = [-0.05, 0.0, unit(), 1.0, 1.05][case / 48 % 5];
+                let seg = light - o;
+                let side = seg.cross(r3(&mut unit, 1.0)).normalize_or(Vec3::X);
+                let out = if case % 13 == 0 {
+                    radius * (1.0 + (case / 13 % 8) as f32 * f32::EPSILON)
+                } else {
+                    radius + push * seg.length()
+                };
+                o + seg * along + side * out
+            };
+            let radius = if case % 17 == 0 { -radius } else { radius };
+            let (g, rho) = origin_ball(&sl.origin, 0xffff);
+            cases += 1;
+            if !sphere_clear(light, (g, rho), center, radius) {
+                continue;
+            }
+            clear += 1;
+            close += (case % 7 != 6 && push < 1e-4) as usize;
+            if let Some(ray) = lanes_meeting(&sl, center, radius) {
+                panic!("case {case}: {ray:?} meets the sphere {center} {radius} said clear");
+            }
+        }
+        for bad in [f32::NAN, f32::INFINITY, -f32::INFINITY] {
+            let (l, far) = (Vec3::Y * 9.0, Vec3::new(0.0, -50.0, 0.0));
+            let (g, b) = (DVec3::ZERO, bad as f64);
+            assert!(!sphere_clear(l, (g, 0.1), far, bad));
+            assert!(!sphere_clear(l, (g, b), far, 1.0));
+            assert!(!sphere_clear(l, (g, 0.1), Vec3::new(bad, 0.0, 0.0), 1.0));
+            assert!(!sphere_clear(l, (DVec3::new(0.0, b, 0.0), 0.1), far, 1.0));
+            assert!(!sphere_clear(Vec3::new(bad, 9.0, 0.0), (g, 0.1), far, 1.0));
+        }
+        eprintln!("{clear} of {cases} spheres clear ({close} pushed out by < 1e-4)");
+        assert!(
+            clear > cases / 4 && close > 500,
+            "{clear} clear, {close} close"
+        );
     }
 
     /// Every lane [`AxisPlane::leaving`] lets skip a triangle is a miss of the scalar

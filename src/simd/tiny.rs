@@ -705,4 +705,104 @@ mod tests {
             "{culled} skipped, {hits} hits"
         );
     }
+
+    /// [`TinyGroup::beyond`] against the packet and the scalar triangle tests at every
+    /// scale: the cases of `beyond_culled_lanes_are_misses_of_both_tests` in scenes of
+    /// scale 1e-3, 1 and 1e4, shifted to 1e5 of the scale from the origin or not, with
+    /// tiny lights (1e-4 of the scale), thin ones (one edge 1e-6 of the other), points
+    /// grazing the light's plane (within 1e-5 of the scale of it, seen almost edge-on)
+    /// and segment ends pushed by a few ulps to a few hundred either way.
+    #[test]
+    fn beyond_holds_at_every_scale() {
+        fn r3(unit: &mut impl FnMut() -> f32, s: f32) -> Vec3 {
+            Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s
+        }
+        let mut next = xorshift64(0x1f83_d9ab_fb41_bd6b);
+        let (mut culled, mut lanes, mut hits) = (0usize, 0usize, 0usize);
+        for case in 0..3000 {
+            let mut unit = || (next() >> 40) as f32 / (1u64 << 24) as f32;
+            let scale = [1e-3f32, 1.0, 1e4][case % 3];
+            let shift = if case / 3 % 2 == 0 {
+                Vec3::ZERO
+            } else {
+                Vec3::new(1e5, -3e4, 7e4) * scale
+            };
+            let size = [2.0f32, 1e-4, 2.0][case / 6 % 3] * scale;
+            let (corner, e1, e2) = if case % 2 == 0 {
+                (
+                    shift + (Vec3::new(-6.0, 9.0, 6.0) + r3(&mut unit, 2.0)) * scale,
+                    Vec3::X * size,
+                    Vec3::Z * size,
+                )
+            } else {
+                (
+                    shift + (r3(&mut unit, 8.0) + Vec3::Y * 6.0) * scale,
+                    r3(&mut unit, 2.0) * size,
+                    r3(&mut unit, 2.0) * size,
+                )
+            };
+            // Thin lights: one edge 1e-6 of the other.
+            let e2 = if case / 18 % 4 == 3 {
+                e1.cross(e2).cross(e1).normalize_or(Vec3::Z) * 1e-6 * e1.length()
+            } else {
+                e2
+            };
+            let normal = e1.cross(e2).normalize();
+            if !normal.is_finite() {
+                continue;
+            }
+            let q_error = crate::geometry::gamma(32) * (corner.abs() + e1.abs() + e2.abs());
+            let tris = [
+                [corner, corner + e1, corner + e1 + e2],
+                [corner, corner + e1 + e2, corner + e2],
+            ];
+            let mut p = shift + r3(&mut unit, 16.0) * scale;
+            if case / 5 % 4 == 0 {
+                // Grazing: the point within 1e-5 of the scale of the light's plane.
+                p -= normal * (normal.dot(p - corner) - (unit() - 0.5) * 2e-5 * scale);
+            }
+            let p_error = crate::geometry::gamma(5) * p.abs() + Vec3::splat(1e-7 * scale);
+            let n = r3(&mut unit, 2.0).normalize_or(Vec3::Y);
+            let stretch = [0.0f32, -4.0, 1.0, 4.0, 16.0, 64.0, 256.0][case % 7] * f32::EPSILON;
+            let rays: Vec<Ray> = (0..TINY_WIDTH)
+                .map(|_| {
+                    let point = corner + e1 * unit() + e2 * unit();
+                    let mut r = spawn_ray_to(p, p_error, n, point, q_error, normal);
+                    r.tmax *= 1.0 + stretch;
+                    r
+                })
+                .collect();
+            for key in 0..6 {
+                let ids: Vec<u32> = (0..rays.len() as u32)
+                    .filter(|&i| shear_key(&rays[i as usize]) == Some(key))
+                    .collect();
+                if ids.is_empty() {
+                    continue;
+                }
+                let g = TinyGroup::new(&rays, &ids, key);
+                for c in &tris {
+                    let skip = g.beyond(c, g.mask);
+                    let blocked = g.triangle_blocks(c, g.mask);
+                    lanes += ids.len();
+                    hits += blocked.count_ones() as usize;
+                    culled += skip.count_ones() as usize;
+                    assert_eq!(skip & blocked, 0, "case {case}: the packet test hits");
+                    for (i, &id) in ids.iter().enumerate() {
+                        let ray = &rays[id as usize];
+                        let q = RayQuery::new(ray).expect("a valid segment");
+                        let hit = intersect_triangle(&q, c[0], c[1], c[2], ray.tmax);
+                        assert!(
+                            skip >> i & 1 == 0 || hit.is_none(),
+                            "case {case}: {ray:?} skipped {c:?} but the scalar test hits it"
+                        );
+                    }
+                }
+            }
+        }
+        eprintln!("{culled} of {lanes} lanes skipped, {hits} hits");
+        assert!(
+            culled > lanes / 5 && hits > 100,
+            "{culled} skipped, {hits} hits"
+        );
+    }
 }
