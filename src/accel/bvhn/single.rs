@@ -30,10 +30,12 @@ use crate::accel::Primitives;
 use crate::accel::filter::{FilterSink, triangle_candidates};
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
+use crate::simd::slab_fma::{FmaRay, FusedLanes};
 use crate::simd::kernels::{triangle4_any, triangle4_closest};
 
 /// A ray prepared for N-wide node tests: splatted origin and reciprocal direction, and
-/// the plane indices its direction signs select.
+/// the plane indices its direction signs select. Ize's subtract-multiply test: rays with
+/// `tmin < 0` and builds without FMA; everything else takes [`FmaRay`].
 struct NodeRay<L: Lanes> {
     o: [L; 3],
     inv: [L; 3],
@@ -64,10 +66,19 @@ impl<L: Lanes> NodeRay<L> {
             tmin: L::splat(q.tmin),
         }
     }
+}
 
-    /// Slab test against a node's children (its `planes`): entry distances and the bits
-    /// of the children entered within `[tmin, tmax]`. The same arithmetic as
-    /// `Aabb::intersect`.
+/// The node test a single-ray traversal runs: entry distances and the bits of the
+/// children entered within `[tmin, tmax]`, and the bound a popped entry distance is
+/// compared with.
+pub(super) trait SlabTest<L: Lanes> {
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32);
+    /// Whether a child pushed with entry distance `d` can still hold a hit before `tmax`.
+    fn may_enter(d: f32, tmax: f32) -> bool;
+}
+
+impl<L: Lanes> SlabTest<L> for NodeRay<L> {
+    /// The same arithmetic as `Aabb::intersect`.
     #[inline(always)]
     fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
         let d = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv[a];
@@ -79,6 +90,36 @@ impl<L: Lanes> NodeRay<L> {
         );
         (enter, enter.le(exit).bitmask())
     }
+    #[inline(always)]
+    fn may_enter(d: f32, tmax: f32) -> bool {
+        d <= tmax * ROBUST_FAR_SCALE
+    }
+}
+
+impl<L: FusedLanes> SlabTest<L> for FmaRay<L> {
+    #[inline(always)]
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
+        FmaRay::test(self, p, tmax)
+    }
+    /// An entry distance is at most the exact one rounded to nearest (`slab_fma`), and
+    /// `tmax` is a float: no scale.
+    #[inline(always)]
+    fn may_enter(d: f32, tmax: f32) -> bool {
+        d <= tmax
+    }
+}
+
+/// The FMA test's constants for `q`, where it applies (see [`SlabTest`]).
+#[inline(always)]
+pub(super) fn fma_ray<L: FusedLanes>(q: &RayQuery, on: bool) -> Option<FmaRay<L>> {
+    (on && q.tmin >= 0.0).then(|| {
+        FmaRay::with_reciprocal(
+            q.origin.to_array(),
+            q.dir.to_array(),
+            q.inv_dir.to_array(),
+            q.tmin,
+        )
+    })
 }
 
 /// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
@@ -124,8 +165,34 @@ where
 {
     /// Closest hit of one ray in the subtree `start`, with interval `(q.tmin, tmax)`.
     #[inline]
-    pub(super) fn closest_from(&self, q: &RayQuery, start: u32, mut tmax: f32) -> Option<Hit> {
-        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+    pub(super) fn closest_from(&self, q: &RayQuery, start: u32, tmax: f32) -> Option<Hit> {
+        match fma_ray(q, self.fma_slab) {
+            Some(ray) if self.leaf_call => self.closest_with::<_, true>(&ray, q, start, tmax),
+            Some(ray) => self.closest_with::<_, false>(&ray, q, start, tmax),
+            None => self.closest_with::<_, false>(&NodeRay::new(q), q, start, tmax),
+        }
+    }
+
+    /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
+    #[inline]
+    pub(super) fn any_from(&self, q: &RayQuery, start: u32) -> bool {
+        match fma_ray(q, self.fma_slab) {
+            Some(ray) if self.leaf_call => self.any_with::<_, true>(&ray, q, start),
+            Some(ray) => self.any_with::<_, false>(&ray, q, start),
+            None => self.any_with::<_, false>(&NodeRay::new(q), q, start),
+        }
+    }
+
+    #[inline(always)]
+    /// `CALL`: the leaf test is an out-of-line call (so the node loop may keep the
+    /// ray's constants in registers), else inlined.
+    pub(super) fn closest_with<R: SlabTest<<Width<N> as NodeWidth>::L>, const CALL: bool>(
+        &self,
+        ray: &R,
+        q: &RayQuery,
+        start: u32,
+        mut tmax: f32,
+    ) -> Option<Hit> {
         let mut best = None;
         let mut stack = Stack::new();
         let mut cur = start;
@@ -138,7 +205,11 @@ where
                     cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;
                 }
-            } else if let Some(h) = self.leaf_closest(q, cur, tmax) {
+            } else if let Some(h) = if CALL {
+                self.leaf_closest_call(q, cur, tmax)
+            } else {
+                self.leaf_closest(q, cur, tmax)
+            } {
                 tmax = h.t;
                 best = Some(h);
             }
@@ -146,7 +217,7 @@ where
                 let Some((r, d)) = stack.pop() else {
                     return best;
                 };
-                if d <= tmax * ROBUST_FAR_SCALE {
+                if R::may_enter(d, tmax) {
                     cur = r;
                     break;
                 }
@@ -154,10 +225,13 @@ where
         }
     }
 
-    /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
-    #[inline]
-    pub(super) fn any_from(&self, q: &RayQuery, start: u32) -> bool {
-        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+    #[inline(always)]
+    pub(super) fn any_with<R: SlabTest<<Width<N> as NodeWidth>::L>, const CALL: bool>(
+        &self,
+        ray: &R,
+        q: &RayQuery,
+        start: u32,
+    ) -> bool {
         let mut stack: Stack<u32, SINGLE_STACK> = Stack::new();
         let mut cur = start;
         loop {
@@ -176,7 +250,11 @@ where
                     }
                     continue;
                 }
-            } else if self.leaf_any(q, cur) {
+            } else if if CALL {
+                self.leaf_any_call(q, cur)
+            } else {
+                self.leaf_any(q, cur)
+            } {
                 return true;
             }
             match stack.pop() {
@@ -233,6 +311,18 @@ where
         best
     }
 
+    /// [`leaf_closest`](Self::leaf_closest) as a call.
+    #[inline(never)]
+    fn leaf_closest_call(&self, q: &RayQuery, r: u32, tmax: f32) -> Option<Hit> {
+        self.leaf_closest(q, r, tmax)
+    }
+
+    /// [`leaf_any`](Self::leaf_any) as a call.
+    #[inline(never)]
+    fn leaf_any_call(&self, q: &RayQuery, r: u32) -> bool {
+        self.leaf_any(q, r)
+    }
+
     #[inline(always)]
     pub(super) fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
         match &self.leaves {
@@ -254,10 +344,12 @@ where
         let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
         let mut stack = Stack::new();
         let mut cur = self.root;
+        // Ize's test (kept for the filtered query: its hits are few and its leaves cost
+        // more than its node tests).
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (enter, mask) = ray.test(&node.planes(), sink.tmax);
+                let (enter, mask) = SlabTest::test(&ray, &node.planes(), sink.tmax);
                 if mask != 0 {
                     cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;
