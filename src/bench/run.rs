@@ -1,7 +1,8 @@
 //! Running the protocol: every workload for one mode, and the whole `bench` command.
 
 use super::modes::{
-    COMPRESSED_MODES, MODES, PACKET_TUNING_MODES, SLAB_MODES, SORTED_MODES, TraceMode, build_mode, known_mode,
+    COMPRESSED_MODES, MODES, PACKET_TUNING_MODES, SLAB_MODES, SORTED_MODES, TraceMode, build_mode,
+    known_mode,
 };
 use super::protocol::Protocol;
 use super::timing::{BenchRow, Timing, median};

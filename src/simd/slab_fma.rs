@@ -107,7 +107,11 @@ fn step(x: f32, step: bool, up: bool) -> f32 {
     let b = x.to_bits();
     let neg = b >> 31;
     // +1 moves a positive value up and a negative one down.
-    let dir = if up { 1u32.wrapping_sub(2 * neg) } else { (2 * neg).wrapping_sub(1) };
+    let dir = if up {
+        1u32.wrapping_sub(2 * neg)
+    } else {
+        (2 * neg).wrapping_sub(1)
+    };
     f32::from_bits(b.wrapping_add((step as u32).wrapping_mul(dir)))
 }
 
@@ -368,7 +372,11 @@ mod tests {
         let tiny = TINY as f64;
         FmaAxis {
             rn,
-            on: if x.abs() < tiny * (1.0 - 1e-7) { TINY } else { up(x) },
+            on: if x.abs() < tiny * (1.0 - 1e-7) {
+                TINY
+            } else {
+                up(x)
+            },
             rf,
             of: if rf == 0.0 {
                 f32::NEG_INFINITY
@@ -438,7 +446,11 @@ mod tests {
                 let r = 1.0 / d;
                 assert!(x.rn == r || x.rn == toward_zero(r), "d {d:e}");
                 assert_eq!(FmaAxis::new(o, d), exact_directed(o, d), "o {o:e} d {d:e}");
-                let lanes = fma_axes([o, 1.0, -3.0], [d, 0.5, -0.0], [1.0 / d, 2.0, f32::NEG_INFINITY]);
+                let lanes = fma_axes(
+                    [o, 1.0, -3.0],
+                    [d, 0.5, -0.0],
+                    [1.0 / d, 2.0, f32::NEG_INFINITY],
+                );
                 assert_eq!(lanes[0], x, "lanes, o {o:e} d {d:e}");
                 assert_eq!(lanes[1], FmaAxis::new(1.0, 0.5));
                 assert_eq!(lanes[2], FmaAxis::new(-3.0, -0.0));
@@ -520,7 +532,8 @@ mod tests {
                         "culled a box the exact test enters: o {o:?} d {d:?} box {lo:?}..{hi:?} \
                          t [{tmin}, {tmax}]"
                     );
-                    // The entry distance is at most the exact one (rounded to nearest).
+                    // The entry distance is at most the exact one rounded to nearest
+                    // (`e` is within 2^-52 of it, relatively; E >= tmin >= 0).
                     let mut e = tmin as f64;
                     for a in 0..3 {
                         if d[a] != 0.0 {
@@ -532,7 +545,7 @@ mod tests {
                         }
                     }
                     assert!(
-                        enter as f64 <= e * (1.0 + 1e-12) + 1e-300,
+                        enter <= (e * (1.0 + 1e-12)) as f32,
                         "entry {enter} above the exact {e}: o {o:?} d {d:?}"
                     );
                 }
@@ -545,7 +558,10 @@ mod tests {
         );
         // The generator must reach every case it is meant to.
         assert!(entered > checked / 4, "{entered} of {checked} entered");
-        assert!(culled_exact_miss > checked / 20, "{culled_exact_miss} culled");
+        assert!(
+            culled_exact_miss > checked / 20,
+            "{culled_exact_miss} culled"
+        );
     }
 
     /// Exact ties the f64 test can call: rays with power-of-two directions through a

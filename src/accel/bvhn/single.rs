@@ -9,10 +9,22 @@
 //!   registers). Embree's default (non-robust, what its harness runs) is one FMA per
 //!   plane, `lower * rdir - org * rdir`, the loads folded: about 14. Embree's robust
 //!   mode does what we do (subtract, multiply, far planes scaled by `1 + 2 gamma(3)`).
-//!   An FMA form must widen the interval by an absolute term: with `c = fma(p, inv,
-//!   -RN(o * inv))`, `|c - (p - o) inv| <= gamma(2) |(p - o) inv| + u (1 + u) |o inv|`,
-//!   so the slack grows with the origin's distance from the world origin, unlike Ize's
-//!   relative scale; not built (no time to state and test the bound).
+//!   Built since (`simd/slab_fma.rs`, issue 12): one FMA per plane against per-ray
+//!   constants rounded in the safe direction (`rn`/`rf`: `1/d` toward/away from zero,
+//!   `on`/`of`: `o * r` up/down), conservative for `tmin >= 0` with no scale at all (the
+//!   proof is in that file); rays with `tmin < 0` and builds without FMA keep Ize's test
+//!   (`NodeRay`). `perf annotate` (bvh8, bunny): the plane loads fold into the six
+//!   `vfmadd132ps`, but the constants still live on the stack (each FMA reads one
+//!   operand from there): the inlined leaf test needs the registers. The `+call` bench
+//!   modes call the leaf out of line so the node loop may keep them; not measured yet.
+//!   Measured (bunny, 1 thread, load 7-8, `cpu` 0.5, one binary, `+sub` = Ize's test,
+//!   two interleaved rounds, medians Mrays/s): a first setup that branched on each
+//!   rounding direction cost 33 % of `bvh8-single` (perf) and ran primary 2.46/2.37
+//!   against 4.38/4.88; with the branch-free four-lane setup (`fma_axes`) `bvh8-single`
+//!   primary 4.21/4.06 vs 3.06/4.29, shadow 1.91/1.91 vs 1.85/2.11, diffuse 1.42/1.46 vs
+//!   1.29/1.39; `bvh8-stream` primary 4.72/5.72 vs 5.49/6.84, shadow 1.94/3.07 vs
+//!   2.59/2.66, diffuse 1.43/1.93 vs 1.53/1.55: within the noise of this machine except
+//!   single-ray diffuse (+5-10 %, both rounds).
 //! - Child order: the same cases as Embree's `BVHNNodeTraverser1Hit` (one child: no
 //!   stack; two: one compare; more: push and sort). The stack keeps its length in
 //!   memory and bounds-checks each push (`cmp`/`ja`), Embree's a raw pointer; hot spots
@@ -30,8 +42,8 @@ use crate::accel::Primitives;
 use crate::accel::filter::{FilterSink, triangle_candidates};
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
-use crate::simd::slab_fma::{FmaRay, FusedLanes};
 use crate::simd::kernels::{triangle4_any, triangle4_closest};
+use crate::simd::slab_fma::{FmaRay, FusedLanes};
 
 /// A ray prepared for N-wide node tests: splatted origin and reciprocal direction, and
 /// the plane indices its direction signs select. Ize's subtract-multiply test: rays with

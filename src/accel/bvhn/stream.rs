@@ -46,9 +46,9 @@ use super::tree::Bvh;
 use crate::accel::Primitives;
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, octant};
 use crate::simd::Lanes;
-use crate::simd::slab_fma::{FmaAxis, FmaRay, FusedLanes, fma_axes};
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use crate::simd::prefetch::prefetch;
+use crate::simd::slab_fma::{FmaAxis, FmaRay, FusedLanes, fma_axes};
 use std::cell::RefCell;
 
 /// Lists shorter than this finish their subtree ray by ray. 1 (only leaves ray by
@@ -173,11 +173,7 @@ impl Scratch {
             next[k as usize] += 1;
             self.index[s] = i as u32;
             self.rays[s] = if fma {
-                let x = fma_axes(
-                    q.origin.to_array(),
-                    q.dir.to_array(),
-                    q.inv_dir.to_array(),
-                );
+                let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
                 StreamRay {
                     a: x.map(|x| x.rn),
                     tmin: q.tmin,
