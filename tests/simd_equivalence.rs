@@ -322,7 +322,7 @@ fn far_grazing_and_negative_tmin_rays_agree() {
                 // On a face plane of the bounds, moving within it.
                 let a = (rng.next_u64() % 3) as usize;
                 let mut o = r.origin;
-                o[a] = if rng.next_u64() % 2 == 0 {
+                o[a] = if rng.next_u64().is_multiple_of(2) {
                     b.min[a]
                 } else {
                     b.max[a]

@@ -319,8 +319,8 @@ mod tests {
         tmax: f32,
     ) -> (bool, f32) {
         let mut planes = [[f32::INFINITY; 8]; 6];
-        for k in 3..6 {
-            planes[k] = [f32::NEG_INFINITY; 8];
+        for p in &mut planes[3..6] {
+            *p = [f32::NEG_INFINITY; 8];
         }
         for a in 0..3 {
             planes[a][0] = lo[a];
@@ -481,7 +481,7 @@ mod tests {
                 let e = rng.unit() * s * rng.pick(&[1.0f32, 1e-3, 1e-6]);
                 lo[a] = centre[a] - e;
                 hi[a] = centre[a] + e;
-                if rng.next() % 16 == 0 {
+                if rng.next().is_multiple_of(16) {
                     hi[a] = lo[a]; // a flat box
                 }
             }

@@ -291,7 +291,7 @@ where
     fn stream<const ANY: bool>(&self, s: &mut Scratch, rays: &[Ray]) {
         // The FMA node test needs tmin >= 0 (`simd/slab_fma.rs`); a batch with a ray
         // that has not takes Ize's test throughout.
-        let fma = self.fma_slab && rays.iter().all(|r| !(r.tmin < 0.0));
+        let fma = self.fma_slab && rays.iter().all(|r| r.tmin >= 0.0 || r.tmin.is_nan());
         let bins = s.bin(rays, fma);
         for octant in 0..8 {
             let (b0, b1) = (bins[octant], bins[octant + 1]);
