@@ -106,9 +106,30 @@ where
         bvhn.any_stream(&rays[at..end], &mut chunked_occ[at..end]);
         at = end;
     }
+    // The same tree with Ize's subtract-multiply node test in the single-ray and
+    // stream kernels (the FMA test is the default where the build has FMA).
+    let mut ize = build::<_, N, T>(tris.clone());
+    ize.set_fma_slab(false);
+    let mut ize_stream = vec![None; rays.len()];
+    ize.closest_stream(rays, &mut ize_stream);
+    let mut ize_stream_occ = vec![false; rays.len()];
+    ize.any_stream(rays, &mut ize_stream_occ);
     let mut bad = Vec::new();
     for (i, r) in rays.iter().enumerate() {
         let want = scalar.closest_hit(r);
+        for (kind, got) in [
+            ("single (Ize's node test)", ize.closest_single(r)),
+            ("stream (Ize's node test)", ize_stream[i]),
+        ] {
+            if !same_hit(want, got) {
+                bad.push(format!("ray {i}: scalar {want:?} vs bvh{N}-{kind} {got:?}"));
+            }
+        }
+        if scalar.any_hit(r) != ize.any_single(r) || scalar.any_hit(r) != ize_stream_occ[i] {
+            bad.push(format!(
+                "ray {i}: bvh{N} occlusion with Ize's node test differs"
+            ));
+        }
         let single = bvhn.closest_single(r);
         if !same_hit(want, single) {
             bad.push(format!(
@@ -278,6 +299,59 @@ fn random_and_axis_parallel_rays_agree() {
     let tris = triangle_soup(4000, 11);
     let rays = random_rays(&bounds_of(&tris), 30_000, 12);
     check("random + axis-parallel", &tris, &rays);
+}
+
+/// Rays that stress the node tests' rounding: origins far outside the mesh (10^4 and
+/// 10^6 diagonals back along the ray), origins exactly on the planes of the mesh's
+/// bounding box with the direction in that plane (zero and subnormal components),
+/// intervals starting after 0 and before it (`tmin < 0`: the FMA test does not apply and
+/// Ize's is used), and huge coordinates (the mesh moved 10^6 diagonals away).
+#[test]
+fn far_grazing_and_negative_tmin_rays_agree() {
+    let tris = triangle_soup(3000, 17);
+    let b = bounds_of(&tris);
+    let base = random_rays(&b, 9000, 23);
+    let mut rays = Vec::new();
+    let mut rng = Rng(29);
+    for (i, r) in base.iter().enumerate() {
+        let len = b.diagonal();
+        rays.push(match i % 6 {
+            0 => Ray::new(r.origin - r.dir * (1e4 * len), r.dir),
+            1 => Ray::new(r.origin - r.dir * (1e6 * len), r.dir),
+            2 => {
+                // On a face plane of the bounds, moving within it.
+                let a = (rng.next_u64() % 3) as usize;
+                let mut o = r.origin;
+                o[a] = if rng.next_u64().is_multiple_of(2) {
+                    b.min[a]
+                } else {
+                    b.max[a]
+                };
+                let mut d = r.dir;
+                d[a] = [0.0, -0.0, 1e-40, -1e-39][(rng.next_u64() % 4) as usize];
+                Ray::new(o, d)
+            }
+            3 => Ray::segment(r.origin, r.dir, -0.5 * len, f32::INFINITY),
+            4 => Ray::segment(r.origin, r.dir, 0.25 * len * rng.f32(), f32::INFINITY),
+            _ => *r,
+        });
+    }
+    check("far, grazing, tmin != 0", &tris, &rays);
+    // The same rays against the mesh moved 10^6 diagonals away (and the rays with it).
+    let shift = b.extent() * 1e6;
+    let moved = Triangles {
+        v0: tris.v0.iter().map(|v| *v + shift).collect(),
+        v1: tris.v1.iter().map(|v| *v + shift).collect(),
+        v2: tris.v2.iter().map(|v| *v + shift).collect(),
+    };
+    let moved_rays: Vec<Ray> = rays
+        .iter()
+        .map(|r| Ray {
+            origin: r.origin + shift,
+            ..*r
+        })
+        .collect();
+    check("huge coordinates", &moved, &moved_rays);
 }
 
 /// Invalid lanes (NaN, inf, zero direction, NaN interval) miss and leave the other lanes

@@ -280,6 +280,18 @@ pub const PACKET_TUNING_MODES: &[&str] = &[
     "bvh8-packet8@7",
 ];
 
+/// The single-ray and stream kernels with Ize's subtract-multiply node test instead of
+/// the FMA test (`simd/slab_fma.rs`), `+sub`, or with the FMA test and the leaf test
+/// called out of line, `+call`; run when asked for by name: A/Bs on one binary.
+pub const SLAB_MODES: &[&str] = &[
+    "bvh4-single+sub",
+    "bvh4-stream+sub",
+    "bvh8-single+sub",
+    "bvh8-stream+sub",
+    "bvh8-single+call",
+    "bvh8-stream+call",
+];
+
 /// Sorted packets (see [`SortedPackets`]), run when asked for by name: slower than the
 /// ray-by-ray path on diffuse rays on AVX2 (numbers in `accel/bvhn/sorted.rs`).
 pub const SORTED_MODES: &[&str] = &[
@@ -298,21 +310,28 @@ pub fn known_mode(name: &str) -> Option<&'static str> {
         .chain(PREFETCH_MODES)
         .chain(PACKET_TUNING_MODES)
         .chain(SORTED_MODES)
+        .chain(SLAB_MODES)
         .copied()
         .find(|&m| m == name)
 }
 
 /// An N-wide BVH over `tris` with node type `T`, prefetching in `kernel` forced to
-/// `prefetch` where given.
+/// `prefetch` where given, the FMA node test off where `sub`.
 fn wide_accel<const N: usize, T: WideNode<N>>(
     tris: Triangles,
     kernel: &str,
     prefetch: Option<bool>,
+    sub: bool,
+    call: bool,
 ) -> Box<dyn Accel>
 where
     Width<N>: NodeWidth,
 {
     let mut bvh = Bvh::<Triangles, N, T>::build(tris);
+    if sub {
+        bvh.set_fma_slab(false);
+    }
+    bvh.set_leaf_call(call);
     if let Some(on) = prefetch {
         let mut p = Prefetch::default();
         match kernel {
@@ -365,17 +384,18 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
             bvh,
         }));
     }
-    let (base, prefetch) = match name.split_once('+') {
-        None => (name, None),
-        Some((b, "pf")) => (b, Some(true)),
-        Some((b, _)) => (b, Some(false)),
+    let (base, prefetch, sub) = match name.split_once('+') {
+        None => (name, None, false),
+        Some((b, "sub" | "call")) => (b, None, name.ends_with("+sub")),
+        Some((b, "pf")) => (b, Some(true), false),
+        Some((b, _)) => (b, Some(false), false),
     };
     let (structure, kernel) = base.split_once('-')?;
     let accel = match structure {
-        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch),
-        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch),
-        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch),
-        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch),
+        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
+        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
+        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
+        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
         _ => return None,
     };
     Some(match kernel {

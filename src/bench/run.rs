@@ -1,7 +1,8 @@
 //! Running the protocol: every workload for one mode, and the whole `bench` command.
 
 use super::modes::{
-    COMPRESSED_MODES, MODES, PACKET_TUNING_MODES, SORTED_MODES, TraceMode, build_mode, known_mode,
+    COMPRESSED_MODES, MODES, PACKET_TUNING_MODES, SLAB_MODES, SORTED_MODES, TraceMode, build_mode,
+    known_mode,
 };
 use super::protocol::Protocol;
 use super::timing::{BenchRow, Timing, median};
@@ -151,12 +152,13 @@ pub fn run(
             return Err(crate::Error::parameter(
                 "mode",
                 format!(
-                    "unknown mode '{m}', expected one of {}, {}, {}, {} or a prefetch \
+                    "unknown mode '{m}', expected one of {}, {}, {}, {}, {} or a prefetch \
                      variant (<mode>+pf, <mode>+nopf)",
                     MODES.join(", "),
                     COMPRESSED_MODES.join(", "),
                     PACKET_TUNING_MODES.join(", "),
-                    SORTED_MODES.join(", ")
+                    SORTED_MODES.join(", "),
+                    SLAB_MODES.join(", ")
                 ),
             ));
         }

@@ -28,6 +28,7 @@ pub mod quant;
 pub mod ray_gather;
 pub mod ray_store;
 pub mod shadow_cull;
+pub mod slab_fma;
 pub mod specular;
 pub mod sphere_clearance;
 pub mod surface;

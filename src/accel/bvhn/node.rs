@@ -4,7 +4,8 @@
 //! [`BvhNode`] and on the compressed [`QNode`](super::QNode)).
 
 use crate::geometry::Aabb;
-use crate::simd::{F4, F8, Lanes};
+use crate::simd::slab_fma::FusedLanes;
+use crate::simd::{F4, F8};
 use glam::Vec3;
 
 /// A node of an N-wide BVH: the children's bounds as lane arrays and packed child
@@ -84,7 +85,7 @@ impl<const N: usize> WideNode<N> for BvhNode<N> {
 /// The node widths there are kernels for, and the lane type of their slab test.
 pub trait NodeWidth {
     /// N lanes: one per child.
-    type L: Lanes;
+    type L: FusedLanes;
 }
 
 /// Marker for node width `N`.

@@ -9,10 +9,22 @@
 //!   registers). Embree's default (non-robust, what its harness runs) is one FMA per
 //!   plane, `lower * rdir - org * rdir`, the loads folded: about 14. Embree's robust
 //!   mode does what we do (subtract, multiply, far planes scaled by `1 + 2 gamma(3)`).
-//!   An FMA form must widen the interval by an absolute term: with `c = fma(p, inv,
-//!   -RN(o * inv))`, `|c - (p - o) inv| <= gamma(2) |(p - o) inv| + u (1 + u) |o inv|`,
-//!   so the slack grows with the origin's distance from the world origin, unlike Ize's
-//!   relative scale; not built (no time to state and test the bound).
+//!   Built since (`simd/slab_fma.rs`, issue 12): one FMA per plane against per-ray
+//!   constants rounded in the safe direction (`rn`/`rf`: `1/d` toward/away from zero,
+//!   `on`/`of`: `o * r` up/down), conservative for `tmin >= 0` with no scale at all (the
+//!   proof is in that file); rays with `tmin < 0` and builds without FMA keep Ize's test
+//!   (`NodeRay`). `perf annotate` (bvh8, bunny): the plane loads fold into the six
+//!   `vfmadd132ps`, but the constants still live on the stack (each FMA reads one
+//!   operand from there): the inlined leaf test needs the registers. The `+call` bench
+//!   modes call the leaf out of line so the node loop may keep them; not measured yet.
+//!   Measured (bunny, 1 thread, load 7-8, `cpu` 0.5, one binary, `+sub` = Ize's test,
+//!   two interleaved rounds, medians Mrays/s): a first setup that branched on each
+//!   rounding direction cost 33 % of `bvh8-single` (perf) and ran primary 2.46/2.37
+//!   against 4.38/4.88; with the branch-free four-lane setup (`fma_axes`) `bvh8-single`
+//!   primary 4.21/4.06 vs 3.06/4.29, shadow 1.91/1.91 vs 1.85/2.11, diffuse 1.42/1.46 vs
+//!   1.29/1.39; `bvh8-stream` primary 4.72/5.72 vs 5.49/6.84, shadow 1.94/3.07 vs
+//!   2.59/2.66, diffuse 1.43/1.93 vs 1.53/1.55: within the noise of this machine except
+//!   single-ray diffuse (+5-10 %, both rounds).
 //! - Child order: the same cases as Embree's `BVHNNodeTraverser1Hit` (one child: no
 //!   stack; two: one compare; more: push and sort). The stack keeps its length in
 //!   memory and bounds-checks each push (`cmp`/`ja`), Embree's a raw pointer; hot spots
@@ -31,9 +43,11 @@ use crate::accel::filter::{FilterSink, triangle_candidates};
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
 use crate::simd::kernels::{triangle4_any, triangle4_closest};
+use crate::simd::slab_fma::{FmaRay, FusedLanes};
 
 /// A ray prepared for N-wide node tests: splatted origin and reciprocal direction, and
-/// the plane indices its direction signs select.
+/// the plane indices its direction signs select. Ize's subtract-multiply test: rays with
+/// `tmin < 0` and builds without FMA; everything else takes [`FmaRay`].
 struct NodeRay<L: Lanes> {
     o: [L; 3],
     inv: [L; 3],
@@ -64,10 +78,19 @@ impl<L: Lanes> NodeRay<L> {
             tmin: L::splat(q.tmin),
         }
     }
+}
 
-    /// Slab test against a node's children (its `planes`): entry distances and the bits
-    /// of the children entered within `[tmin, tmax]`. The same arithmetic as
-    /// `Aabb::intersect`.
+/// The node test a single-ray traversal runs: entry distances and the bits of the
+/// children entered within `[tmin, tmax]`, and the bound a popped entry distance is
+/// compared with.
+pub(super) trait SlabTest<L: Lanes> {
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32);
+    /// Whether a child pushed with entry distance `d` can still hold a hit before `tmax`.
+    fn may_enter(d: f32, tmax: f32) -> bool;
+}
+
+impl<L: Lanes> SlabTest<L> for NodeRay<L> {
+    /// The same arithmetic as `Aabb::intersect`.
     #[inline(always)]
     fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
         let d = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv[a];
@@ -79,6 +102,36 @@ impl<L: Lanes> NodeRay<L> {
         );
         (enter, enter.le(exit).bitmask())
     }
+    #[inline(always)]
+    fn may_enter(d: f32, tmax: f32) -> bool {
+        d <= tmax * ROBUST_FAR_SCALE
+    }
+}
+
+impl<L: FusedLanes> SlabTest<L> for FmaRay<L> {
+    #[inline(always)]
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
+        FmaRay::test(self, p, tmax)
+    }
+    /// An entry distance is at most the exact one rounded to nearest (`slab_fma`), and
+    /// `tmax` is a float: no scale.
+    #[inline(always)]
+    fn may_enter(d: f32, tmax: f32) -> bool {
+        d <= tmax
+    }
+}
+
+/// The FMA test's constants for `q`, where it applies (see [`SlabTest`]).
+#[inline(always)]
+pub(super) fn fma_ray<L: FusedLanes>(q: &RayQuery, on: bool) -> Option<FmaRay<L>> {
+    (on && q.tmin >= 0.0).then(|| {
+        FmaRay::with_reciprocal(
+            q.origin.to_array(),
+            q.dir.to_array(),
+            q.inv_dir.to_array(),
+            q.tmin,
+        )
+    })
 }
 
 /// Pushes the entered children (bits of `mask`) nearest-last and returns the nearest.
@@ -124,8 +177,34 @@ where
 {
     /// Closest hit of one ray in the subtree `start`, with interval `(q.tmin, tmax)`.
     #[inline]
-    pub(super) fn closest_from(&self, q: &RayQuery, start: u32, mut tmax: f32) -> Option<Hit> {
-        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+    pub(super) fn closest_from(&self, q: &RayQuery, start: u32, tmax: f32) -> Option<Hit> {
+        match fma_ray(q, self.fma_slab) {
+            Some(ray) if self.leaf_call => self.closest_with::<_, true>(&ray, q, start, tmax),
+            Some(ray) => self.closest_with::<_, false>(&ray, q, start, tmax),
+            None => self.closest_with::<_, false>(&NodeRay::new(q), q, start, tmax),
+        }
+    }
+
+    /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
+    #[inline]
+    pub(super) fn any_from(&self, q: &RayQuery, start: u32) -> bool {
+        match fma_ray(q, self.fma_slab) {
+            Some(ray) if self.leaf_call => self.any_with::<_, true>(&ray, q, start),
+            Some(ray) => self.any_with::<_, false>(&ray, q, start),
+            None => self.any_with::<_, false>(&NodeRay::new(q), q, start),
+        }
+    }
+
+    #[inline(always)]
+    /// `CALL`: the leaf test is an out-of-line call (so the node loop may keep the
+    /// ray's constants in registers), else inlined.
+    pub(super) fn closest_with<R: SlabTest<<Width<N> as NodeWidth>::L>, const CALL: bool>(
+        &self,
+        ray: &R,
+        q: &RayQuery,
+        start: u32,
+        mut tmax: f32,
+    ) -> Option<Hit> {
         let mut best = None;
         let mut stack = Stack::new();
         let mut cur = start;
@@ -138,7 +217,11 @@ where
                     cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;
                 }
-            } else if let Some(h) = self.leaf_closest(q, cur, tmax) {
+            } else if let Some(h) = if CALL {
+                self.leaf_closest_call(q, cur, tmax)
+            } else {
+                self.leaf_closest(q, cur, tmax)
+            } {
                 tmax = h.t;
                 best = Some(h);
             }
@@ -146,7 +229,7 @@ where
                 let Some((r, d)) = stack.pop() else {
                     return best;
                 };
-                if d <= tmax * ROBUST_FAR_SCALE {
+                if R::may_enter(d, tmax) {
                     cur = r;
                     break;
                 }
@@ -154,10 +237,13 @@ where
         }
     }
 
-    /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
-    #[inline]
-    pub(super) fn any_from(&self, q: &RayQuery, start: u32) -> bool {
-        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+    #[inline(always)]
+    pub(super) fn any_with<R: SlabTest<<Width<N> as NodeWidth>::L>, const CALL: bool>(
+        &self,
+        ray: &R,
+        q: &RayQuery,
+        start: u32,
+    ) -> bool {
         let mut stack: Stack<u32, SINGLE_STACK> = Stack::new();
         let mut cur = start;
         loop {
@@ -176,7 +262,11 @@ where
                     }
                     continue;
                 }
-            } else if self.leaf_any(q, cur) {
+            } else if if CALL {
+                self.leaf_any_call(q, cur)
+            } else {
+                self.leaf_any(q, cur)
+            } {
                 return true;
             }
             match stack.pop() {
@@ -233,6 +323,18 @@ where
         best
     }
 
+    /// [`leaf_closest`](Self::leaf_closest) as a call.
+    #[inline(never)]
+    fn leaf_closest_call(&self, q: &RayQuery, r: u32, tmax: f32) -> Option<Hit> {
+        self.leaf_closest(q, r, tmax)
+    }
+
+    /// [`leaf_any`](Self::leaf_any) as a call.
+    #[inline(never)]
+    fn leaf_any_call(&self, q: &RayQuery, r: u32) -> bool {
+        self.leaf_any(q, r)
+    }
+
     #[inline(always)]
     pub(super) fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
         match &self.leaves {
@@ -254,10 +356,12 @@ where
         let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
         let mut stack = Stack::new();
         let mut cur = self.root;
+        // Ize's test (kept for the filtered query: its hits are few and its leaves cost
+        // more than its node tests).
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (enter, mask) = ray.test(&node.planes(), sink.tmax);
+                let (enter, mask) = SlabTest::test(&ray, &node.planes(), sink.tmax);
                 if mask != 0 {
                     cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;

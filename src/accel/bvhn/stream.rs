@@ -48,6 +48,7 @@ use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, octant};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use crate::simd::prefetch::prefetch;
+use crate::simd::slab_fma::{FmaAxis, FmaRay, FusedLanes, fma_axes};
 use std::cell::RefCell;
 
 /// Lists shorter than this finish their subtree ray by ray. 1 (only leaves ray by
@@ -70,21 +71,27 @@ pub const STREAM_MIN_RAYS: u32 = 2;
 /// 2.95/3.06, 3.05/3.28, 2.90/3.05: +4-8 %, every pair).
 const QUERY_AHEAD: usize = 2;
 
-/// One ray as the node test reads it: 48 bytes, so a gathered ray touches one cache line
-/// at most twice.
+/// One ray as the node test reads it: 64 bytes, one cache line. With the FMA node test
+/// (`simd/slab_fma.rs`) `a`, `b`, `c`, `e` are `rn`, `on`, `rf`, `of`; with Ize's test
+/// `a` is the origin, `b` the reciprocal direction and `c` the reciprocal scaled by `1 +
+/// 2 gamma(3)`, the conservative far-plane scale of `single.rs` (`e` unused). Was 48
+/// bytes (Ize's test only) before the FMA test needed a fourth triple.
 #[derive(Clone, Copy, Debug, Default)]
-#[repr(C, align(16))]
+#[repr(C, align(64))]
 struct StreamRay {
-    o: [f32; 3],
+    a: [f32; 3],
     tmin: f32,
-    inv: [f32; 3],
+    b: [f32; 3],
     /// The end of the ray's interval: the closest hit so far; NaN once an occlusion
     /// query is answered (a NaN far distance enters no child).
     tmax: f32,
-    /// `inv * (1 + 2 gamma(3))`, the conservative far-plane scale of `single.rs`.
-    inv_far: [f32; 3],
+    c: [f32; 3],
     _pad: f32,
+    e: [f32; 3],
+    _pad2: f32,
 }
+
+const _: () = assert!(std::mem::size_of::<StreamRay>() == 64);
 
 /// A list of rays waiting to traverse the subtree `node`: ids `start..start + len` of
 /// the arena; `top` is where the arena is free once this entry is popped.
@@ -121,7 +128,7 @@ thread_local! {
 impl Scratch {
     /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
     /// first binned ray of each octant (and the end).
-    fn bin(&mut self, rays: &[Ray]) -> [u32; 9] {
+    fn bin(&mut self, rays: &[Ray], fma: bool) -> [u32; 9] {
         // Each query is built once, in the caller's order (an invalid ray gets a
         // placeholder no binned ray refers to); then a counting sort by octant (the
         // direction's sign bits, which are the reciprocal's: 1/(-0.0) is -inf) places
@@ -165,13 +172,26 @@ impl Scratch {
             let s = next[k as usize] as usize;
             next[k as usize] += 1;
             self.index[s] = i as u32;
-            self.rays[s] = StreamRay {
-                o: q.origin.to_array(),
-                tmin: q.tmin,
-                inv: q.inv_dir.to_array(),
-                tmax: q.tmax,
-                inv_far: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
-                _pad: 0.0,
+            self.rays[s] = if fma {
+                let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
+                StreamRay {
+                    a: x.map(|x| x.rn),
+                    tmin: q.tmin,
+                    b: x.map(|x| x.on),
+                    tmax: q.tmax,
+                    c: x.map(|x| x.rf),
+                    e: x.map(|x| x.of),
+                    ..StreamRay::default()
+                }
+            } else {
+                StreamRay {
+                    a: q.origin.to_array(),
+                    tmin: q.tmin,
+                    b: q.inv_dir.to_array(),
+                    tmax: q.tmax,
+                    c: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
+                    ..StreamRay::default()
+                }
             };
         }
         self.best.clear();
@@ -206,7 +226,7 @@ struct OctantPlanes<L: Lanes> {
     far: [L; 3],
 }
 
-impl<L: Lanes> OctantPlanes<L> {
+impl<L: FusedLanes> OctantPlanes<L> {
     #[inline(always)]
     fn new<const N: usize>(p: &[[f32; N]; 6], octant: usize) -> Self {
         let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
@@ -216,16 +236,25 @@ impl<L: Lanes> OctantPlanes<L> {
         }
     }
 
-    /// The single-ray slab test of `single.rs` (`NodeRay::test`), the same operations:
-    /// entry distances and the mask of the children entered.
+    /// The single-ray slab test of `single.rs`, the same operations: entry distances
+    /// and the mask of the children entered. `FMA`: the FMA test (`FmaRay::test`),
+    /// else Ize's (`NodeRay`).
     #[inline(always)]
-    fn test(&self, r: &StreamRay) -> (L, L) {
+    fn test<const FMA: bool>(&self, r: &StreamRay) -> (L, L) {
         let s = L::splat;
-        let d = |a: usize| (self.near[a] - s(r.o[a])) * s(r.inv[a]);
-        let f = |a: usize| (self.far[a] - s(r.o[a])) * s(r.inv_far[a]);
-        let enter = d(0).maxps(d(1).maxps(d(2).maxps(s(r.tmin))));
-        let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax * ROBUST_FAR_SCALE))));
-        (enter, enter.le(exit))
+        if FMA {
+            let n = |a: usize| self.near[a].mul_sub_fused(s(r.a[a]), s(r.b[a]));
+            let f = |a: usize| self.far[a].mul_sub_fused(s(r.c[a]), s(r.e[a]));
+            let enter = n(0).maxps(n(1).maxps(n(2).maxps(s(r.tmin))));
+            let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax))));
+            (enter, enter.le(exit))
+        } else {
+            let d = |a: usize| (self.near[a] - s(r.a[a])) * s(r.b[a]);
+            let f = |a: usize| (self.far[a] - s(r.a[a])) * s(r.c[a]);
+            let enter = d(0).maxps(d(1).maxps(d(2).maxps(s(r.tmin))));
+            let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax * ROBUST_FAR_SCALE))));
+            (enter, enter.le(exit))
+        }
     }
 }
 
@@ -260,19 +289,31 @@ where
     }
 
     fn stream<const ANY: bool>(&self, s: &mut Scratch, rays: &[Ray]) {
-        let bins = s.bin(rays);
+        // The FMA node test needs tmin >= 0 (`simd/slab_fma.rs`); a batch with a ray
+        // that has not takes Ize's test throughout.
+        let fma = self.fma_slab && rays.iter().all(|r| r.tmin >= 0.0 || r.tmin.is_nan());
+        let bins = s.bin(rays, fma);
         for octant in 0..8 {
             let (b0, b1) = (bins[octant], bins[octant + 1]);
             if b1 > b0 {
                 s.arena.clear();
                 s.arena.extend(b0..b1);
-                self.stream_octant::<ANY>(s, octant, b1 - b0);
+                if fma {
+                    self.stream_octant::<ANY, true>(s, octant, b1 - b0);
+                } else {
+                    self.stream_octant::<ANY, false>(s, octant, b1 - b0);
+                }
             }
         }
     }
 
     /// Traverses the rays `s.arena[..len]` (all of direction octant `octant`).
-    fn stream_octant<const ANY: bool>(&self, s: &mut Scratch, octant: usize, len: u32) {
+    fn stream_octant<const ANY: bool, const FMA: bool>(
+        &self,
+        s: &mut Scratch,
+        octant: usize,
+        len: u32,
+    ) {
         s.stack.clear();
         s.stack.push(Entry {
             node: self.root,
@@ -292,7 +333,7 @@ where
                         s.prefetch_query(s.arena[k + QUERY_AHEAD]);
                     }
                     let id = s.arena[k] as usize;
-                    self.finish::<ANY>(s, id, e.node);
+                    self.finish::<ANY, FMA>(s, id, e.node);
                 }
                 continue;
             }
@@ -314,7 +355,7 @@ where
             let mut sum = <<Width<N> as NodeWidth>::L as Lanes>::splat(0.0);
             let mut union = 0u32;
             for (&id, m) in list.iter().zip(&mut s.masks[..len]) {
-                let (enter, hit) = planes.test(&s.rays[id as usize]);
+                let (enter, hit) = planes.test::<FMA>(&s.rays[id as usize]);
                 *m = hit.bitmask();
                 union |= *m;
                 if !ANY {
@@ -362,16 +403,36 @@ where
         }
     }
 
-    /// Ray `id` through the subtree `node` on its own (a leaf, or a short list).
+    /// Ray `id` through the subtree `node` on its own (a leaf, or a short list). With
+    /// `FMA` a short list's ray reuses its stream record's constants instead of
+    /// deriving them again (`closest_from` would).
     #[inline(always)]
-    fn finish<const ANY: bool>(&self, s: &mut Scratch, id: usize, node: u32) {
+    fn finish<const ANY: bool, const FMA: bool>(&self, s: &mut Scratch, id: usize, node: u32) {
         let q = &s.queries[s.index[id] as usize];
+        let r = &s.rays[id];
+        let fma_ray = || {
+            let axes = [0, 1, 2].map(|a| FmaAxis {
+                rn: r.a[a],
+                on: r.b[a],
+                rf: r.c[a],
+                of: r.e[a],
+            });
+            FmaRay::<<Width<N> as NodeWidth>::L>::from_axes(
+                axes,
+                q.dir.to_array().map(|d| d.is_sign_negative()),
+                r.tmin,
+            )
+        };
         if ANY {
             if s.done[id] {
                 return;
             }
             let hit = if is_leaf(node) {
                 self.leaf_any(q, node)
+            } else if FMA && self.leaf_call {
+                self.any_with::<_, true>(&fma_ray(), q, node)
+            } else if FMA {
+                self.any_with::<_, false>(&fma_ray(), q, node)
             } else {
                 self.any_from(q, node)
             };
@@ -380,9 +441,13 @@ where
                 s.rays[id].tmax = f32::NAN;
             }
         } else {
-            let tmax = s.rays[id].tmax;
+            let tmax = r.tmax;
             let h = if is_leaf(node) {
                 self.leaf_closest(q, node, tmax)
+            } else if FMA && self.leaf_call {
+                self.closest_with::<_, true>(&fma_ray(), q, node, tmax)
+            } else if FMA {
+                self.closest_with::<_, false>(&fma_ray(), q, node, tmax)
             } else {
                 self.closest_from(q, node, tmax)
             };

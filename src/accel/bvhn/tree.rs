@@ -12,6 +12,7 @@ use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
+use crate::simd::slab_fma::FMA_SLAB;
 use crate::simd::{PACKET_WIDTH, Packet};
 use std::time::Instant;
 
@@ -57,6 +58,13 @@ pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
     /// Packet traversal: a part with fewer active lanes than this finishes its subtree
     /// ray by ray (`[closest, occlusion]`).
     pub(super) packet_min_active: [u32; 2],
+    /// The single-ray and stream kernels test nodes with the FMA slab test
+    /// (`simd::slab_fma`; rays with `tmin >= 0` in builds with FMA), else with Ize's
+    /// subtract-multiply test.
+    pub(super) fma_slab: bool,
+    /// The FMA single-ray kernel calls its leaf test out of line (`bench`'s `+call`
+    /// modes; see `single.rs`).
+    pub(super) leaf_call: bool,
 }
 
 /// The 4-wide BVH.
@@ -133,6 +141,8 @@ where
             stack_need: 0,
             prefetch: Prefetch::default(),
             packet_min_active: [PACKET_MIN_ACTIVE; 2],
+            fma_slab: FMA_SLAB,
+            leaf_call: false,
         };
         let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
         assert!(
@@ -199,6 +209,18 @@ where
     /// [`PACKET_MIN_ACTIVE`] for both).
     pub fn set_packet_min_active(&mut self, min_active: [u32; 2]) {
         self.packet_min_active = min_active;
+    }
+
+    /// Whether the single-ray and stream kernels use the FMA slab test (only where the
+    /// build has FMA: [`FMA_SLAB`]); on by default. Off is the A/B of `bench`'s `+sub`
+    /// modes.
+    pub fn set_fma_slab(&mut self, on: bool) {
+        self.fma_slab = on && FMA_SLAB;
+    }
+
+    /// Whether the FMA single-ray kernel calls its leaf test out of line.
+    pub fn set_leaf_call(&mut self, on: bool) {
+        self.leaf_call = on;
     }
 
     /// Prefetches what visiting child reference `r` reads first: its node (every
