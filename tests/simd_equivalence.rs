@@ -106,28 +106,28 @@ where
         bvhn.any_stream(&rays[at..end], &mut chunked_occ[at..end]);
         at = end;
     }
-    // The same tree with Ize's subtract-multiply node test in the single-ray and
-    // stream kernels (the FMA test is the default where the build has FMA).
-    let mut ize = build::<_, N, T>(tris.clone());
-    ize.set_fma_slab(false);
-    let mut ize_stream = vec![None; rays.len()];
-    ize.closest_stream(rays, &mut ize_stream);
-    let mut ize_stream_occ = vec![false; rays.len()];
-    ize.any_stream(rays, &mut ize_stream_occ);
+    // The same tree with the FMA node test in the single-ray and stream kernels (where
+    // the build has FMA; off by default, Ize's subtract-multiply test is the default).
+    let mut fma = build::<_, N, T>(tris.clone());
+    fma.set_fma_slab(true);
+    let mut fma_stream = vec![None; rays.len()];
+    fma.closest_stream(rays, &mut fma_stream);
+    let mut fma_stream_occ = vec![false; rays.len()];
+    fma.any_stream(rays, &mut fma_stream_occ);
     let mut bad = Vec::new();
     for (i, r) in rays.iter().enumerate() {
         let want = scalar.closest_hit(r);
         for (kind, got) in [
-            ("single (Ize's node test)", ize.closest_single(r)),
-            ("stream (Ize's node test)", ize_stream[i]),
+            ("single (FMA node test)", fma.closest_single(r)),
+            ("stream (FMA node test)", fma_stream[i]),
         ] {
             if !same_hit(want, got) {
                 bad.push(format!("ray {i}: scalar {want:?} vs bvh{N}-{kind} {got:?}"));
             }
         }
-        if scalar.any_hit(r) != ize.any_single(r) || scalar.any_hit(r) != ize_stream_occ[i] {
+        if scalar.any_hit(r) != fma.any_single(r) || scalar.any_hit(r) != fma_stream_occ[i] {
             bad.push(format!(
-                "ray {i}: bvh{N} occlusion with Ize's node test differs"
+                "ray {i}: bvh{N} occlusion with the FMA node test differs"
             ));
         }
         let single = bvhn.closest_single(r);

@@ -280,14 +280,15 @@ pub const PACKET_TUNING_MODES: &[&str] = &[
     "bvh8-packet8@7",
 ];
 
-/// The single-ray and stream kernels with Ize's subtract-multiply node test instead of
-/// the FMA test (`simd/slab_fma.rs`), `+sub`, or with the FMA test and the leaf test
-/// called out of line, `+call`; run when asked for by name: A/Bs on one binary.
+/// The single-ray and stream kernels with the FMA node test (`simd/slab_fma.rs`, off by
+/// default: see `Bvh::set_fma_slab`) instead of Ize's subtract-multiply test, `+fma`, or
+/// with the FMA test and the leaf test called out of line, `+call`; run when asked for
+/// by name: A/Bs on one binary.
 pub const SLAB_MODES: &[&str] = &[
-    "bvh4-single+sub",
-    "bvh4-stream+sub",
-    "bvh8-single+sub",
-    "bvh8-stream+sub",
+    "bvh4-single+fma",
+    "bvh4-stream+fma",
+    "bvh8-single+fma",
+    "bvh8-stream+fma",
     "bvh8-single+call",
     "bvh8-stream+call",
 ];
@@ -316,21 +317,19 @@ pub fn known_mode(name: &str) -> Option<&'static str> {
 }
 
 /// An N-wide BVH over `tris` with node type `T`, prefetching in `kernel` forced to
-/// `prefetch` where given, the FMA node test off where `sub`.
+/// `prefetch` where given, the FMA node test on where `fma`.
 fn wide_accel<const N: usize, T: WideNode<N>>(
     tris: Triangles,
     kernel: &str,
     prefetch: Option<bool>,
-    sub: bool,
+    fma: bool,
     call: bool,
 ) -> Box<dyn Accel>
 where
     Width<N>: NodeWidth,
 {
     let mut bvh = Bvh::<Triangles, N, T>::build(tris);
-    if sub {
-        bvh.set_fma_slab(false);
-    }
+    bvh.set_fma_slab(fma);
     bvh.set_leaf_call(call);
     if let Some(on) = prefetch {
         let mut p = Prefetch::default();
@@ -384,18 +383,18 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
             bvh,
         }));
     }
-    let (base, prefetch, sub) = match name.split_once('+') {
+    let (base, prefetch, fma) = match name.split_once('+') {
         None => (name, None, false),
-        Some((b, "sub" | "call")) => (b, None, name.ends_with("+sub")),
+        Some((b, "fma" | "call")) => (b, None, true),
         Some((b, "pf")) => (b, Some(true), false),
         Some((b, _)) => (b, Some(false), false),
     };
     let (structure, kernel) = base.split_once('-')?;
     let accel = match structure {
-        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
-        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
-        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
-        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch, sub, name.ends_with("+call")),
+        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
+        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
+        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
+        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
         _ => return None,
     };
     Some(match kernel {

@@ -17,7 +17,7 @@
 //!   `vfmadd132ps`, but the constants still live on the stack (each FMA reads one
 //!   operand from there): the inlined leaf test needs the registers. The `+call` bench
 //!   modes call the leaf out of line so the node loop may keep them; not measured yet.
-//!   Measured (bunny, 1 thread, load 7-8, `cpu` 0.5, one binary, `+sub` = Ize's test,
+//!   Measured (bunny, 1 thread, load 7-8, `cpu` 0.5, one binary, `+sub` = Ize's test (now the default; the FMA test is `+fma`),
 //!   two interleaved rounds, medians Mrays/s): a first setup that branched on each
 //!   rounding direction cost 33 % of `bvh8-single` (perf) and ran primary 2.46/2.37
 //!   against 4.38/4.88; with the branch-free four-lane setup (`fma_axes`) `bvh8-single`
