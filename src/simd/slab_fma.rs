@@ -399,6 +399,9 @@ mod tests {
 
     #[test]
     fn directed_constants_bracket_the_reciprocal() {
+        if !FMA_SLAB {
+            println!("lane setup (fma_axes) not compared: this build has no FMA");
+        }
         let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
         let specials = [
             0.0,
@@ -448,14 +451,18 @@ mod tests {
                 let r = 1.0 / d;
                 assert!(x.rn == r || x.rn == toward_zero(r), "d {d:e}");
                 assert_eq!(FmaAxis::new(o, d), exact_directed(o, d), "o {o:e} d {d:e}");
-                let lanes = fma_axes(
-                    [o, 1.0, -3.0],
-                    [d, 0.5, -0.0],
-                    [1.0 / d, 2.0, f32::NEG_INFINITY],
-                );
-                assert_eq!(lanes[0], x, "lanes, o {o:e} d {d:e}");
-                assert_eq!(lanes[1], FmaAxis::new(1.0, 0.5));
-                assert_eq!(lanes[2], FmaAxis::new(-3.0, -0.0));
+                // The lane setup rounds twice where the build has no FMA (and is then
+                // unused: the kernels take Ize's test), so it is compared only with FMA.
+                if FMA_SLAB {
+                    let lanes = fma_axes(
+                        [o, 1.0, -3.0],
+                        [d, 0.5, -0.0],
+                        [1.0 / d, 2.0, f32::NEG_INFINITY],
+                    );
+                    assert_eq!(lanes[0], x, "lanes, o {o:e} d {d:e}");
+                    assert_eq!(lanes[1], FmaAxis::new(1.0, 0.5));
+                    assert_eq!(lanes[2], FmaAxis::new(-3.0, -0.0));
+                }
                 assert!(x.rf == r || x.rf == away_from_zero(r), "d {d:e}");
             }
         }
