@@ -625,6 +625,63 @@ mod tests {
         assert!(culled > 3_000 && exact_on_plane > 1_000);
     }
 
+    /// Shadow segments from the shading point `[p, p_error, n]` to random points of the
+    /// quad light `[corner, e1, e2]`, built as the renderer builds them (`spawn_ray_to`)
+    /// with their ends moved by the case's stretch, against the light's two triangles:
+    /// every lane [`TinyGroup::beyond`] skips is a miss of both the packet test
+    /// (`triangle_blocks`) and the scalar test ([`intersect_triangle`]). Returns the
+    /// lanes tested, the packet test's hits and the lanes skipped.
+    fn beyond_case(
+        case: usize,
+        mut unit: impl FnMut() -> f32,
+        [p, p_error, n]: [Vec3; 3],
+        [corner, e1, e2]: [Vec3; 3],
+        normal: Vec3,
+    ) -> [usize; 3] {
+        let q_error = crate::geometry::gamma(32) * (corner.abs() + e1.abs() + e2.abs());
+        let tris = [
+            [corner, corner + e1, corner + e1 + e2],
+            [corner, corner + e1 + e2, corner + e2],
+        ];
+        let (mut culled, mut lanes, mut hits) = (0usize, 0usize, 0usize);
+        let stretch = [0.0f32, -4.0, 1.0, 4.0, 16.0, 64.0, 256.0][case % 7] * f32::EPSILON;
+        let rays: Vec<Ray> = (0..TINY_WIDTH)
+            .map(|_| {
+                let point = corner + e1 * unit() + e2 * unit();
+                let mut r = spawn_ray_to(p, p_error, n, point, q_error, normal);
+                r.tmax *= 1.0 + stretch;
+                r
+            })
+            .collect();
+        for key in 0..6 {
+            let ids: Vec<u32> = (0..rays.len() as u32)
+                .filter(|&i| shear_key(&rays[i as usize]) == Some(key))
+                .collect();
+            if ids.is_empty() {
+                continue;
+            }
+            let g = TinyGroup::new(&rays, &ids, key);
+            for c in &tris {
+                let skip = g.beyond(c, g.mask);
+                let blocked = g.triangle_blocks(c, g.mask);
+                lanes += ids.len();
+                hits += blocked.count_ones() as usize;
+                culled += skip.count_ones() as usize;
+                assert_eq!(skip & blocked, 0, "case {case}: the packet test hits");
+                for (i, &id) in ids.iter().enumerate() {
+                    let ray = &rays[id as usize];
+                    let q = RayQuery::new(ray).expect("a valid segment");
+                    let hit = intersect_triangle(&q, c[0], c[1], c[2], ray.tmax);
+                    assert!(
+                        skip >> i & 1 == 0 || hit.is_none(),
+                        "case {case}: {ray:?} skipped {c:?} but the scalar test hits it"
+                    );
+                }
+            }
+        }
+        [lanes, hits, culled]
+    }
+
     /// Every lane that [`TinyGroup::beyond`] lets skip a triangle is one both the
     /// packet test (`triangle_blocks`) and the scalar test ([`intersect_triangle`])
     /// report no hit for: shadow segments built as the renderer builds them
@@ -649,55 +706,11 @@ mod tests {
                 (r3(8.0) + Vec3::Y * 6.0, r3(4.0), r3(4.0))
             };
             let normal = e1.cross(e2).normalize();
-            let q_error = crate::geometry::gamma(32) * (corner.abs() + e1.abs() + e2.abs());
-            let tris = [
-                [corner, corner + e1, corner + e1 + e2],
-                [corner, corner + e1 + e2, corner + e2],
-            ];
             let p = r3(16.0);
             let p_error = Vec3::splat(1e-6) * (1.0 + p.abs().max_element());
             let n = r3(2.0).normalize_or(Vec3::Y);
-            // 0: as built; 1..: the end moved by `stretch` relative.
-            let stretch = [0.0f32, -4.0, 1.0, 4.0, 16.0, 64.0, 256.0][case % 7] * f32::EPSILON;
-            let rays: Vec<Ray> = (0..TINY_WIDTH)
-                .map(|_| {
-                    let point = corner + e1 * unit() + e2 * unit();
-                    let mut r =
-                        crate::geometry::spawn_ray_to(p, p_error, n, point, q_error, normal);
-                    r.tmax *= 1.0 + stretch;
-                    r
-                })
-                .collect();
-            for key in 0..6 {
-                let ids: Vec<u32> = (0..rays.len() as u32)
-                    .filter(|&i| shear_key(&rays[i as usize]) == Some(key))
-                    .collect();
-                if ids.is_empty() {
-                    continue;
-                }
-                let g = TinyGroup::new(&rays, &ids, key);
-                for c in &tris {
-                    let skip = g.beyond(c, g.mask);
-                    let blocked = g.triangle_blocks(c, g.mask);
-                    lanes += ids.len();
-                    hits += blocked.count_ones() as usize;
-                    culled += skip.count_ones() as usize;
-                    assert_eq!(
-                        skip & blocked,
-                        0,
-                        "case {case}: skipped lanes the packet test hits"
-                    );
-                    for (i, &id) in ids.iter().enumerate() {
-                        let ray = &rays[id as usize];
-                        let q = RayQuery::new(ray).expect("a valid segment");
-                        let hit = intersect_triangle(&q, c[0], c[1], c[2], ray.tmax);
-                        assert!(
-                            skip >> i & 1 == 0 || hit.is_none(),
-                            "case {case}: {ray:?} skipped {c:?} but the scalar test hits it"
-                        );
-                    }
-                }
-            }
+            let [l, h, c] = beyond_case(case, &mut unit, [p, p_error, n], [corner, e1, e2], normal);
+            (lanes, hits, culled) = (lanes + l, hits + h, culled + c);
         }
         eprintln!("{culled} of {lanes} lanes skipped, {hits} hits");
         assert!(
@@ -751,11 +764,6 @@ mod tests {
             if !normal.is_finite() {
                 continue;
             }
-            let q_error = crate::geometry::gamma(32) * (corner.abs() + e1.abs() + e2.abs());
-            let tris = [
-                [corner, corner + e1, corner + e1 + e2],
-                [corner, corner + e1 + e2, corner + e2],
-            ];
             let mut p = shift + r3(&mut unit, 16.0) * scale;
             if case / 5 % 4 == 0 {
                 // Grazing: the point within 1e-5 of the scale of the light's plane.
@@ -763,41 +771,8 @@ mod tests {
             }
             let p_error = crate::geometry::gamma(5) * p.abs() + Vec3::splat(1e-7 * scale);
             let n = r3(&mut unit, 2.0).normalize_or(Vec3::Y);
-            let stretch = [0.0f32, -4.0, 1.0, 4.0, 16.0, 64.0, 256.0][case % 7] * f32::EPSILON;
-            let rays: Vec<Ray> = (0..TINY_WIDTH)
-                .map(|_| {
-                    let point = corner + e1 * unit() + e2 * unit();
-                    let mut r = spawn_ray_to(p, p_error, n, point, q_error, normal);
-                    r.tmax *= 1.0 + stretch;
-                    r
-                })
-                .collect();
-            for key in 0..6 {
-                let ids: Vec<u32> = (0..rays.len() as u32)
-                    .filter(|&i| shear_key(&rays[i as usize]) == Some(key))
-                    .collect();
-                if ids.is_empty() {
-                    continue;
-                }
-                let g = TinyGroup::new(&rays, &ids, key);
-                for c in &tris {
-                    let skip = g.beyond(c, g.mask);
-                    let blocked = g.triangle_blocks(c, g.mask);
-                    lanes += ids.len();
-                    hits += blocked.count_ones() as usize;
-                    culled += skip.count_ones() as usize;
-                    assert_eq!(skip & blocked, 0, "case {case}: the packet test hits");
-                    for (i, &id) in ids.iter().enumerate() {
-                        let ray = &rays[id as usize];
-                        let q = RayQuery::new(ray).expect("a valid segment");
-                        let hit = intersect_triangle(&q, c[0], c[1], c[2], ray.tmax);
-                        assert!(
-                            skip >> i & 1 == 0 || hit.is_none(),
-                            "case {case}: {ray:?} skipped {c:?} but the scalar test hits it"
-                        );
-                    }
-                }
-            }
+            let [l, h, c] = beyond_case(case, &mut unit, [p, p_error, n], [corner, e1, e2], normal);
+            (lanes, hits, culled) = (lanes + l, hits + h, culled + c);
         }
         eprintln!("{culled} of {lanes} lanes skipped, {hits} hits");
         assert!(
