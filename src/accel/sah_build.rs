@@ -487,6 +487,17 @@ fn build_tree_sampling<P: Primitives>(
 ///
 /// Measured before (README "BVH build"): page faults were 5 % of a 1-thread build at
 /// 10^6 triangles, and the scratch array was a full copy of the references.
+///
+/// Why 10^7 builds slower per triangle than 10^6 (2026-11-24, perf, 1 thread, load
+/// 8-9; no hardware counters in this VM, so no cache-miss counts): the kernel zeroing
+/// fresh pages was 19 % of the samples at 10^7 against 4 % at 10^6. glibc maps blocks
+/// above 32 MB afresh and unmaps them when freed, so every 10^7 build gets its 640 MB
+/// of references as fresh pages, while at 10^6 the 64 MB pair is recycled from the
+/// heap by the next build. With the allocator kept from mapping (`MALLOC_MMAP_MAX_=0`,
+/// an experiment only) one 10^7 build took 5,919 CPU ms against 7,353 and 14.5 s wall
+/// against 53.9 s. Not built yet: partitioning the top levels in place (no scratch
+/// array: 32 bytes per triangle fewer fresh pages; it changes the order of references,
+/// hence the sampled splits).
 fn zeroed_refs(n: usize) -> Vec<PrimRef> {
     if n == 0 {
         return Vec::new();
