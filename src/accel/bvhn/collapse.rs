@@ -63,7 +63,10 @@ impl<const N: usize> Collapse<'_, N> {
         let blocks: usize = leaves.iter().map(|l| (l.1 as usize).div_ceil(4)).sum();
         self.groups.reserve(blocks);
         // The groups are written once, in order: fresh pages, backed by huge pages where
-        // the kernel allows (fewer faults; 40 bytes per triangle).
+        // the kernel allows (40 bytes per triangle). Measured at 10^6 triangles, 1
+        // thread, load 8-9: page faults per build 17,547 -> 8,349; CPU ms per build not
+        // resolved (three interleaved rounds: 612 / 431 / 468 without, 505 / 679 / 498
+        // with).
         let spare = self.groups.spare_capacity_mut();
         advise_huge_pages(spare.as_mut_ptr().cast(), std::mem::size_of_val(spare));
         for (i, &(first, count)) in leaves.iter().enumerate() {
