@@ -7,7 +7,9 @@
 //! leaves per triangle, and the process's peak resident memory per triangle (Linux
 //! `VmHWM`: the mesh and its copy for the build included; the build's own arrays are
 //! 2 x 32 bytes of references and 4 bytes of ids per triangle on top of the tree).
-//! `--obj OUT.obj` also writes
+//! It also prints the median count of minor page faults per build (fresh pages the
+//! kernel zeroes on first touch: the arrays of a build not recycled by the allocator
+//! from the previous one). `--obj OUT.obj` also writes
 //! the mesh as an OBJ (three vertices per triangle) for Embree's harness, which reads
 //! only files.
 
@@ -29,6 +31,20 @@ fn write_obj(mesh: &BenchMesh, path: &str) -> std::io::Result<()> {
         writeln!(f, "f {} {} {}", k, k + 1, k + 2)?;
     }
     f.flush()
+}
+
+/// The process's minor page faults so far (`getrusage`), where the system reports them:
+/// each is a page the kernel hands over, zeroed, on first touch.
+fn minor_faults() -> Option<i64> {
+    #[cfg(unix)]
+    {
+        // SAFETY: `getrusage` fills the struct it is given; all-zero is a valid value.
+        let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+        // SAFETY: a valid pointer to a live `rusage`.
+        (unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } == 0).then_some(u.ru_minflt)
+    }
+    #[cfg(not(unix))]
+    None
 }
 
 /// The process's peak resident set in bytes (`VmHWM` in `/proc/self/status`), where
@@ -71,18 +87,21 @@ fn main() -> packet_render::Result<()> {
         .num_threads(threads)
         .build()
         .expect("thread pool");
-    let (mut ms, mut cpu_ms) = (Vec::new(), Vec::new());
+    let (mut ms, mut cpu_ms, mut faults) = (Vec::new(), Vec::new(), Vec::new());
     let mut info = None;
     for i in 0..=reps {
         let tris = mesh.triangles.clone();
-        let c0 = process_cpu_seconds();
+        let (c0, f0) = (process_cpu_seconds(), minor_faults());
         let accel = pool.install(|| AccelKind::Bvh8.build(tris));
-        let c1 = process_cpu_seconds();
+        let (c1, f1) = (process_cpu_seconds(), minor_faults());
         let inf = accel.info();
         if i > 0 {
             ms.push(inf.build_ms);
             if let (Some(a), Some(b)) = (c0, c1) {
                 cpu_ms.push((b - a) * 1e3);
+            }
+            if let (Some(a), Some(b)) = (f0, f1) {
+                faults.push(b - a);
             }
         }
         drop(accel);
@@ -101,6 +120,11 @@ fn main() -> packet_render::Result<()> {
             info.as_ref().map_or(0, |i| i.primitives) as f64 / cpu_ms[cpu_ms.len() / 2] / 1e3,
         )
     };
+    faults.sort_unstable();
+    let faults = match faults.get(faults.len() / 2) {
+        Some(f) => format!("  page faults per build (median) {f}"),
+        None => String::new(),
+    };
     let info = info.expect("at least one build");
     let peak = match peak_rss_bytes() {
         Some(b) => format!(
@@ -111,7 +135,7 @@ fn main() -> packet_render::Result<()> {
         None => "peak RSS unavailable".to_string(),
     };
     println!(
-        "{} tris={} threads={threads} build ms min {:.2} median {:.2} max {:.2} Mtri/s {:.2}  {cpu}  sah {:.4} nodes {} leaves {} bytes/tri {:.1}  {peak}",
+        "{} tris={} threads={threads} build ms min {:.2} median {:.2} max {:.2} Mtri/s {:.2}  {cpu}  sah {:.4} nodes {} leaves {} bytes/tri {:.1}  {peak}{faults}",
         mesh.name,
         info.primitives,
         ms[0],

@@ -45,6 +45,7 @@ use super::Bvh2BuildOptions;
 use super::Primitives;
 use crate::geometry::Aabb;
 use crate::simd::bin_box::BinBox;
+use crate::simd::box_areas;
 use glam::{BVec3A, BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -213,18 +214,20 @@ const _: () = assert!(MAX_BINS.is_power_of_two());
 
 /// Per-axis bins of one node: bounds and primitive counts. The bounds are
 /// [`BinBox`]es (maximum negated, one 8-lane minimum per update); [`Bins::bounds`]
-/// reads one back as a [`BBox`].
+/// reads one back as a [`BBox`]. The counts are kept per bin, the three axes in lanes
+/// 0-2 of one `[u32; 4]` (lane 3 zero), so that the sweep loads a bin's three counts
+/// as one vector ([`Bins::count`] reads one).
 #[derive(Clone)]
 struct Bins {
     boxes: [[BinBox; MAX_BINS]; 3],
-    counts: [[u32; MAX_BINS]; 3],
+    counts: [[u32; 4]; MAX_BINS],
 }
 
 impl Bins {
     fn new() -> Self {
         Bins {
             boxes: [[BinBox::EMPTY; MAX_BINS]; 3],
-            counts: [[0; MAX_BINS]; 3],
+            counts: [[0; 4]; MAX_BINS],
         }
     }
 
@@ -238,6 +241,19 @@ impl Bins {
         }
     }
 
+    /// The count of bin `k` on `axis`.
+    #[inline(always)]
+    fn count(&self, axis: usize, k: usize) -> u32 {
+        self.counts[k][axis]
+    }
+
+    /// The counts of bin `k` on the three axes in lanes 0-2 (lane 3 zero), as floats
+    /// (exact below 2^24).
+    #[inline(always)]
+    fn counts_f32(&self, k: usize) -> Vec4 {
+        glam::UVec4::from_array(self.counts[k]).as_ivec4().as_vec4()
+    }
+
     fn merge(mut self, o: &Bins) -> Bins {
         self.merge_first(o, MAX_BINS);
         self
@@ -248,7 +264,11 @@ impl Bins {
         for a in 0..3 {
             for k in 0..n {
                 self.boxes[a][k].grow(&o.boxes[a][k]);
-                self.counts[a][k] += o.counts[a][k];
+            }
+        }
+        for (c, o) in self.counts[..n].iter_mut().zip(&o.counts[..n]) {
+            for (c, o) in c.iter_mut().zip(o) {
+                *c += o;
             }
         }
     }
@@ -257,8 +277,8 @@ impl Bins {
     fn clear(&mut self, n: usize) {
         for a in 0..3 {
             self.boxes[a][..n].fill(BinBox::EMPTY);
-            self.counts[a][..n].fill(0);
         }
+        self.counts[..n].fill([0; 4]);
     }
 
     #[inline(always)]
@@ -267,7 +287,7 @@ impl Bins {
             // `bins_of` keeps `bin` below `bins <= MAX_BINS`; the mask only lets the
             // compiler drop the bounds checks (a compare and branch per axis).
             let bin = bin & (MAX_BINS - 1);
-            self.counts[axis][bin] += 1;
+            self.counts[bin][axis] += 1;
             self.boxes[axis][bin].grow(b);
         }
     }
@@ -330,10 +350,8 @@ impl Bins {
 
     /// Multiplies the first `n` counts of each axis by `w` (a sample's weight).
     fn weigh(&mut self, n: usize, w: u32) {
-        for axis in &mut self.counts {
-            for c in &mut axis[..n] {
-                *c *= w;
-            }
+        for c in self.counts[..n].iter_mut().flatten() {
+            *c *= w;
         }
     }
 }
@@ -469,6 +487,17 @@ fn build_tree_sampling<P: Primitives>(
 ///
 /// Measured before (README "BVH build"): page faults were 5 % of a 1-thread build at
 /// 10^6 triangles, and the scratch array was a full copy of the references.
+///
+/// Why 10^7 builds slower per triangle than 10^6 (2026-11-24, perf, 1 thread, load
+/// 8-9; no hardware counters in this VM, so no cache-miss counts): the kernel zeroing
+/// fresh pages was 19 % of the samples at 10^7 against 4 % at 10^6. glibc maps blocks
+/// above 32 MB afresh and unmaps them when freed, so every 10^7 build gets its 640 MB
+/// of references as fresh pages, while at 10^6 the 64 MB pair is recycled from the
+/// heap by the next build. With the allocator kept from mapping (`MALLOC_MMAP_MAX_=0`,
+/// an experiment only) one 10^7 build took 5,919 CPU ms against 7,353 and 14.5 s wall
+/// against 53.9 s. Not built yet: partitioning the top levels in place (no scratch
+/// array: 32 bytes per triangle fewer fresh pages; it changes the order of references,
+/// hence the sampled splits).
 fn zeroed_refs(n: usize) -> Vec<PrimRef> {
     if n == 0 {
         return Vec::new();
@@ -488,7 +517,7 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
 /// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
 /// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
-fn advise_huge_pages(ptr: *mut u8, len: usize) {
+pub(super) fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;
@@ -772,22 +801,14 @@ impl Builder {
         let inv_area = 1.0 / nb.bounds.area().max(f32::MIN_POSITIVE);
         let inv_block = Vec4::splat(1.0 / (1u32 << shift) as f32);
         let axis_ok = Vec4::new(scale.x, scale.y, scale.z, 0.0).cmpne(Vec4::ZERO);
-        let count = |k: usize| {
-            Vec4::new(
-                bins.counts[0][k] as f32,
-                bins.counts[1][k] as f32,
-                bins.counts[2][k] as f32,
-                0.0,
-            )
-        };
         let mut right_term = [Vec4::ZERO; MAX_BINS];
         let mut right_count = [Vec4::ZERO; MAX_BINS];
-        let (mut acc, mut cnt) = ([BBox::EMPTY; 3], Vec4::ZERO);
+        let (mut acc, mut cnt) = ([BinBox::EMPTY; 3], Vec4::ZERO);
         for k in (1..bins_n).rev() {
             for (a, b) in acc.iter_mut().enumerate() {
-                b.grow(&bins.bounds(a, k));
+                b.grow(&bins.boxes[a][k]);
             }
-            cnt += count(k);
+            cnt += bins.counts_f32(k);
             right_term[k] = areas3(&acc) * (cnt * inv_block).ceil();
             right_count[k] = cnt;
         }
@@ -797,12 +818,12 @@ impl Builder {
         );
         let inv = Vec4::splat(inv_area);
         let (mut best, mut best_k, mut found) = (Vec4::ZERO, Vec4::ZERO, BVec4A::splat(false));
-        let (mut acc, mut cnt) = ([BBox::EMPTY; 3], Vec4::ZERO);
+        let (mut acc, mut cnt) = ([BinBox::EMPTY; 3], Vec4::ZERO);
         for k in 1..bins_n {
             for (a, b) in acc.iter_mut().enumerate() {
-                b.grow(&bins.bounds(a, k - 1));
+                b.grow(&bins.boxes[a][k - 1]);
             }
-            cnt += count(k - 1);
+            cnt += bins.counts_f32(k - 1);
             let valid = axis_ok & cnt.cmpne(Vec4::ZERO) & right_count[k].cmpne(Vec4::ZERO);
             let cost = tc + ic * (areas3(&acc) * (cnt * inv_block).ceil() + right_term[k]) * inv;
             let take = valid & (!found | cost.cmplt(best));
@@ -842,18 +863,17 @@ impl Builder {
             if scale[axis] == 0.0 {
                 continue;
             }
-            let counts = &bins.counts[axis][..bins_n];
             let (mut acc, mut cnt) = (BBox::EMPTY, 0);
             for k in (1..bins_n).rev() {
                 acc.grow(&bins.bounds(axis, k));
-                cnt += counts[k];
+                cnt += bins.count(axis, k);
                 right_term[k] = acc.area() * self.blocks(cnt);
                 right_empty[k] = cnt == 0;
             }
             let (mut acc, mut cnt) = (BBox::EMPTY, 0);
             for k in 1..bins_n {
                 acc.grow(&bins.bounds(axis, k - 1));
-                cnt += counts[k - 1];
+                cnt += bins.count(axis, k - 1);
                 if cnt == 0 || right_empty[k] {
                     continue;
                 }
@@ -881,15 +901,16 @@ impl Builder {
 /// are exact in f32.
 const LANE_SWEEP_MAX: usize = 1 << 24;
 
-/// The areas of three boxes in the first three lanes, each as [`BBox::area`] computes
-/// it (same operations in the same order).
+/// The areas of three bin boxes in the first three lanes, each as [`BBox::area`]
+/// computes it (same operations in the same order: [`BinBox::extent`], then
+/// [`box_areas::areas3`]).
+///
+/// Measured (perf, 1 thread, 10^6 triangles): the lane sweep was 14 % of a build
+/// while it grew plain boxes read back from the bins (a negation each) and gathered
+/// the extents and the counts into lanes one scalar at a time.
 #[inline(always)]
-fn areas3(b: &[BBox; 3]) -> Vec4 {
-    let e = b.map(|b| (b.max - b.min).max(Vec3A::ZERO));
-    let x = Vec4::new(e[0].x, e[1].x, e[2].x, 0.0);
-    let y = Vec4::new(e[0].y, e[1].y, e[2].y, 0.0);
-    let z = Vec4::new(e[0].z, e[1].z, e[2].z, 0.0);
-    2.0 * (x * y + y * z + z * x)
+fn areas3(b: &[BinBox; 3]) -> Vec4 {
+    box_areas::areas3(b[0].extent(), b[1].extent(), b[2].extent())
 }
 
 /// Split `split` with its two sides' boxes, the unions of its bins on either side.
@@ -1253,13 +1274,14 @@ mod tests {
         one.add_all(&src, nb.centroids.min, scale, MAX_BINS);
         let (mut two, mut other) = (Bins::new(), Bins::new());
         two.add_all_paired(&mut other, &src, nb.centroids.min, scale, MAX_BINS);
+        assert_eq!(one.counts, two.counts);
         for a in 0..3 {
-            assert_eq!(one.counts[a], two.counts[a]);
             for k in 0..MAX_BINS {
                 assert_eq!(box_bits(&one.bounds(a, k)), box_bits(&two.bounds(a, k)));
             }
         }
-        assert_eq!(one.counts[0].iter().sum::<u32>(), 1001);
+        assert_eq!((0..MAX_BINS).map(|k| one.count(0, k)).sum::<u32>(), 1001);
+        assert!(one.counts.iter().all(|c| c[3] == 0), "lane 3 stays zero");
     }
 
     /// For every plane of every axis: the children's boxes read off the bins are those
@@ -1407,11 +1429,11 @@ mod tests {
             bins.weigh(bins_n, SAMPLE_WEIGHT);
             for (a, want_a) in want.iter().enumerate() {
                 for (k, (count, bounds)) in want_a.iter().enumerate() {
-                    assert_eq!(bins.counts[a][k], *count, "len {len} axis {a} bin {k}");
+                    assert_eq!(bins.count(a, k), *count, "len {len} axis {a} bin {k}");
                     assert_eq!(box_bits(&bins.bounds(a, k)), box_bits(bounds));
                 }
             }
-            let total: u32 = bins.counts[0].iter().sum();
+            let total: u32 = (0..MAX_BINS).map(|k| bins.count(0, k)).sum();
             assert_eq!(total, sampled * SAMPLE_WEIGHT, "len {len}");
         }
     }
@@ -1576,7 +1598,7 @@ mod tests {
             for bins in [&one, &two] {
                 for (a, want_a) in want.iter().enumerate() {
                     for (k, (count, bounds)) in want_a.iter().enumerate() {
-                        assert_eq!(bins.counts[a][k], *count, "axis {a} bin {k}");
+                        assert_eq!(bins.count(a, k), *count, "axis {a} bin {k}");
                         assert_eq!(
                             box_bits(&bins.bounds(a, k)),
                             box_bits(bounds),

@@ -91,6 +91,14 @@ impl BinBox {
         -Vec3A::from_vec4(self.neg_hi)
     }
 
+    /// The extent `max - min`, clamped below at zero, as `(max - min).max(0)` computes
+    /// it for [`Vec3A`]s (the same operations: `max` is the exact negation of the
+    /// stored lanes); lane 3 holds no meaning.
+    #[inline(always)]
+    pub fn extent(&self) -> Vec4 {
+        (-self.neg_hi - self.lo).max(Vec4::ZERO)
+    }
+
     #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
     #[inline(always)]
     fn from_m256(v: __m256) -> BinBox {
@@ -141,9 +149,16 @@ mod tests {
             hi = hi.max(mx);
             assert_eq!(bits(b.min()), bits(lo), "step {i}");
             assert_eq!(bits(b.max()), bits(hi), "step {i}");
+            let e = Vec3A::from_vec4(b.extent());
+            assert_eq!(bits(e), bits((hi - lo).max(Vec3A::ZERO)), "step {i}");
         }
         let e = BinBox::EMPTY;
         assert_eq!(e.min(), Vec3A::splat(f32::INFINITY));
         assert_eq!(e.max(), Vec3A::splat(f32::NEG_INFINITY));
+        assert_eq!(
+            Vec3A::from_vec4(e.extent()),
+            Vec3A::ZERO,
+            "empty: zero extent"
+        );
     }
 }

@@ -11,6 +11,7 @@
 
 pub mod aperture;
 pub mod bin_box;
+pub mod box_areas;
 pub mod camera;
 pub mod compact;
 pub mod direct_light;
