@@ -43,7 +43,7 @@ use crate::accel::filter::{FilterSink, triangle_candidates};
 use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery};
 use crate::simd::Lanes;
 use crate::simd::kernels::{triangle4_any, triangle4_closest};
-use crate::simd::slab_fma::{FmaRay, FusedLanes};
+use crate::simd::slab_fma::{FmaRay, FusedLanes, t_slack};
 
 /// A ray prepared for N-wide node tests: splatted origin and reciprocal direction, and
 /// the plane indices its direction signs select. Ize's subtract-multiply test: rays with
@@ -81,15 +81,23 @@ impl<L: Lanes> NodeRay<L> {
 }
 
 /// The node test a single-ray traversal runs: entry distances and the bits of the
-/// children entered within `[tmin, tmax]`, and the bound a popped entry distance is
+/// children entered within `[tmin, bound]`, and the bound a popped entry distance is
 /// compared with.
 pub(super) trait SlabTest<L: Lanes> {
-    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32);
-    /// Whether a child pushed with entry distance `d` can still hold a hit before `tmax`.
-    fn may_enter(d: f32, tmax: f32) -> bool;
+    /// The `bound` the node tests take for a query interval ending at `tmax`.
+    fn bound(&self, tmax: f32) -> f32;
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], bound: f32) -> (L, u32);
+    /// Whether a child pushed with entry distance `d` can still hold a hit before the
+    /// interval's end (`bound` as [`bound`](Self::bound) gives it).
+    fn may_enter(d: f32, bound: f32) -> bool;
 }
 
 impl<L: Lanes> SlabTest<L> for NodeRay<L> {
+    /// Ize's test scales `tmax` itself.
+    #[inline(always)]
+    fn bound(&self, tmax: f32) -> f32 {
+        tmax
+    }
     /// The same arithmetic as `Aabb::intersect`.
     #[inline(always)]
     fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
@@ -109,27 +117,40 @@ impl<L: Lanes> SlabTest<L> for NodeRay<L> {
 }
 
 impl<L: FusedLanes> SlabTest<L> for FmaRay<L> {
+    /// `tmax` plus the ray's slack, rounded up (`slab_fma`: the triangle test's error
+    /// in `t`).
     #[inline(always)]
-    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
-        FmaRay::test(self, p, tmax)
+    fn bound(&self, tmax: f32) -> f32 {
+        FmaRay::bound(self, tmax)
+    }
+    #[inline(always)]
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], bound: f32) -> (L, u32) {
+        FmaRay::test(self, p, bound)
     }
     /// An entry distance is at most the exact one rounded to nearest (`slab_fma`), and
-    /// `tmax` is a float: no scale.
+    /// `bound` is a float: no scale.
     #[inline(always)]
-    fn may_enter(d: f32, tmax: f32) -> bool {
-        d <= tmax
+    fn may_enter(d: f32, bound: f32) -> bool {
+        d <= bound
     }
 }
 
-/// The FMA test's constants for `q`, where it applies (see [`SlabTest`]).
+/// The FMA test's constants for `q`, where it applies (see [`SlabTest`]), with the
+/// slack of `simd::slab_fma::t_slack` against the root box `root` (`[min, max]`).
 #[inline(always)]
-pub(super) fn fma_ray<L: FusedLanes>(q: &RayQuery, on: bool) -> Option<FmaRay<L>> {
+pub(super) fn fma_ray<L: FusedLanes>(
+    q: &RayQuery,
+    on: bool,
+    root: &[[f32; 3]; 2],
+) -> Option<FmaRay<L>> {
     (on && q.tmin >= 0.0).then(|| {
+        let kz = q.kz;
         FmaRay::with_reciprocal(
             q.origin.to_array(),
             q.dir.to_array(),
             q.inv_dir.to_array(),
             q.tmin,
+            t_slack(root[0][kz], root[1][kz], q.origin[kz], q.sz),
         )
     })
 }
@@ -178,7 +199,7 @@ where
     /// Closest hit of one ray in the subtree `start`, with interval `(q.tmin, tmax)`.
     #[inline]
     pub(super) fn closest_from(&self, q: &RayQuery, start: u32, tmax: f32) -> Option<Hit> {
-        match fma_ray(q, self.fma_slab) {
+        match fma_ray(q, self.fma_slab, &self.root_box) {
             Some(ray) if self.leaf_call => self.closest_with::<_, true>(&ray, q, start, tmax),
             Some(ray) => self.closest_with::<_, false>(&ray, q, start, tmax),
             None => self.closest_with::<_, false>(&NodeRay::new(q), q, start, tmax),
@@ -188,7 +209,7 @@ where
     /// Any hit of one ray in the subtree `start` within `(q.tmin, q.tmax)`.
     #[inline]
     pub(super) fn any_from(&self, q: &RayQuery, start: u32) -> bool {
-        match fma_ray(q, self.fma_slab) {
+        match fma_ray(q, self.fma_slab, &self.root_box) {
             Some(ray) if self.leaf_call => self.any_with::<_, true>(&ray, q, start),
             Some(ray) => self.any_with::<_, false>(&ray, q, start),
             None => self.any_with::<_, false>(&NodeRay::new(q), q, start),
@@ -208,10 +229,11 @@ where
         let mut best = None;
         let mut stack = Stack::new();
         let mut cur = start;
+        let mut bound = ray.bound(tmax);
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (enter, mask) = ray.test(&node.planes(), tmax);
+                let (enter, mask) = ray.test(&node.planes(), bound);
                 if mask != 0 {
                     self.prefetch_entered(node.children(), mask, self.prefetch.single);
                     cur = order_children(node.children(), enter, mask, &mut stack);
@@ -223,13 +245,14 @@ where
                 self.leaf_closest(q, cur, tmax)
             } {
                 tmax = h.t;
+                bound = ray.bound(tmax);
                 best = Some(h);
             }
             loop {
                 let Some((r, d)) = stack.pop() else {
                     return best;
                 };
-                if R::may_enter(d, tmax) {
+                if R::may_enter(d, bound) {
                     cur = r;
                     break;
                 }
@@ -246,10 +269,11 @@ where
     ) -> bool {
         let mut stack: Stack<u32, SINGLE_STACK> = Stack::new();
         let mut cur = start;
+        let bound = ray.bound(q.tmax);
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (_, mask) = ray.test(&node.planes(), q.tmax);
+                let (_, mask) = ray.test(&node.planes(), bound);
                 if mask != 0 {
                     let children = node.children();
                     self.prefetch_entered(children, mask, self.prefetch.single);
@@ -353,15 +377,29 @@ where
     /// watertight test (the SIMD kernel is its bit-identical twin but reports only the
     /// nearest lane). Each primitive is in one leaf, so no deduplication is needed.
     pub(super) fn filtered_from(&self, q: &RayQuery, sink: &mut FilterSink) {
-        let ray = NodeRay::<<Width<N> as NodeWidth>::L>::new(q);
+        // The node test `closest_from` takes, so that accepting everything visits the
+        // same children in the same order and keeps the same hit on an exact tie (with
+        // the FMA test in one and Ize's in the other, a tie between duplicated
+        // triangles went to different ones: `queries::accepting_everything_is_the_
+        // plain_query`).
+        match fma_ray(q, self.fma_slab, &self.root_box) {
+            Some(ray) => self.filtered_with(&ray, q, sink),
+            None => self.filtered_with(&NodeRay::new(q), q, sink),
+        }
+    }
+
+    fn filtered_with<R: SlabTest<<Width<N> as NodeWidth>::L>>(
+        &self,
+        ray: &R,
+        q: &RayQuery,
+        sink: &mut FilterSink,
+    ) {
         let mut stack = Stack::new();
         let mut cur = self.root;
-        // Ize's test (kept for the filtered query: its hits are few and its leaves cost
-        // more than its node tests).
         loop {
             if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
-                let (enter, mask) = SlabTest::test(&ray, &node.planes(), sink.tmax);
+                let (enter, mask) = ray.test(&node.planes(), ray.bound(sink.tmax));
                 if mask != 0 {
                     cur = order_children(node.children(), enter, mask, &mut stack);
                     continue;
@@ -373,7 +411,7 @@ where
                 let Some((r, d)) = stack.pop() else {
                     return;
                 };
-                if d <= sink.tmax * ROBUST_FAR_SCALE {
+                if R::may_enter(d, ray.bound(sink.tmax)) {
                     cur = r;
                     break;
                 }

@@ -48,7 +48,9 @@ use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, octant};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use crate::simd::prefetch::prefetch;
-use crate::simd::slab_fma::{FmaAxis, FmaRay, FusedLanes, fma_axes};
+use crate::simd::slab_fma::{
+    FmaAxis, FmaRay, FusedLanes, fma_axes, t_slack, widened_tmax, widened_tmin,
+};
 use std::cell::RefCell;
 
 /// Lists shorter than this finish their subtree ray by ray. 1 (only leaves ray by
@@ -86,7 +88,9 @@ struct StreamRay {
     /// query is answered (a NaN far distance enters no child).
     tmax: f32,
     c: [f32; 3],
-    _pad: f32,
+    /// With the FMA test, the ray's slack (`slab_fma::t_slack`): `tmin` and `tmax` are
+    /// the node tests' widened interval, the query's own `tmax` is the best hit's `t`.
+    slack: f32,
     e: [f32; 3],
     _pad2: f32,
 }
@@ -128,7 +132,7 @@ thread_local! {
 impl Scratch {
     /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
     /// first binned ray of each octant (and the end).
-    fn bin(&mut self, rays: &[Ray], fma: bool) -> [u32; 9] {
+    fn bin(&mut self, rays: &[Ray], fma: bool, root: &[[f32; 3]; 2]) -> [u32; 9] {
         // Each query is built once, in the caller's order (an invalid ray gets a
         // placeholder no binned ray refers to); then a counting sort by octant (the
         // direction's sign bits, which are the reciprocal's: 1/(-0.0) is -inf) places
@@ -174,12 +178,15 @@ impl Scratch {
             self.index[s] = i as u32;
             self.rays[s] = if fma {
                 let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
+                let kz = q.kz;
+                let slack = t_slack(root[0][kz], root[1][kz], q.origin[kz], q.sz);
                 StreamRay {
                     a: x.map(|x| x.rn),
-                    tmin: q.tmin,
+                    tmin: widened_tmin(q.tmin, slack),
                     b: x.map(|x| x.on),
-                    tmax: q.tmax,
+                    tmax: widened_tmax(q.tmax, slack),
                     c: x.map(|x| x.rf),
+                    slack,
                     e: x.map(|x| x.of),
                     ..StreamRay::default()
                 }
@@ -292,7 +299,7 @@ where
         // The FMA node test needs tmin >= 0 (`simd/slab_fma.rs`); a batch with a ray
         // that has not takes Ize's test throughout.
         let fma = self.fma_slab && rays.iter().all(|r| r.tmin >= 0.0 || r.tmin.is_nan());
-        let bins = s.bin(rays, fma);
+        let bins = s.bin(rays, fma, &self.root_box);
         for octant in 0..8 {
             let (b0, b1) = (bins[octant], bins[octant + 1]);
             if b1 > b0 {
@@ -421,6 +428,7 @@ where
                 axes,
                 q.dir.to_array().map(|d| d.is_sign_negative()),
                 r.tmin,
+                r.slack,
             )
         };
         if ANY {
@@ -441,7 +449,10 @@ where
                 s.rays[id].tmax = f32::NAN;
             }
         } else {
-            let tmax = r.tmax;
+            // The query's interval ends at the best hit so far (`r.tmax` is the node
+            // tests' bound, widened with the FMA test).
+            let tmax = s.best[id].map_or(q.tmax, |h| h.t);
+            let slack = r.slack;
             let h = if is_leaf(node) {
                 self.leaf_closest(q, node, tmax)
             } else if FMA && self.leaf_call {
@@ -452,7 +463,7 @@ where
                 self.closest_from(q, node, tmax)
             };
             if let Some(h) = h {
-                s.rays[id].tmax = h.t;
+                s.rays[id].tmax = if FMA { widened_tmax(h.t, slack) } else { h.t };
                 s.best[id] = Some(h);
             }
         }

@@ -62,6 +62,9 @@ pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
     /// (`simd::slab_fma`; rays with `tmin >= 0` in builds with FMA), else with Ize's
     /// subtract-multiply test.
     pub(super) fma_slab: bool,
+    /// The root box's planes (`[min, max]`), for the FMA test's slack
+    /// (`simd::slab_fma::t_slack`).
+    pub(super) root_box: [[f32; 3]; 2],
     /// The FMA single-ray kernel calls its leaf test out of line (`bench`'s `+call`
     /// modes; see `single.rs`).
     pub(super) leaf_call: bool,
@@ -142,6 +145,10 @@ where
             prefetch: Prefetch::default(),
             packet_min_active: [PACKET_MIN_ACTIVE; 2],
             fma_slab: false,
+            root_box: tree.as_ref().map_or([[0.0; 3]; 2], |t| {
+                let b = t.bounds();
+                [b.min.to_array(), b.max.to_array()]
+            }),
             leaf_call: false,
         };
         let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
@@ -212,16 +219,18 @@ where
     }
 
     /// Whether the single-ray and stream kernels use the FMA slab test (only where the
-    /// build has FMA: [`FMA_SLAB`]); **off by default**: with it on, the suite's
-    /// `hostile_scenes::rays_from_far_away_agree_with_brute_force` found 22 (BVH4) and 19
-    /// (BVH8) of 40,000 rays from 10^5-10^8 away whose closest `t` differs from brute force
-    /// (first: origin (-4.7e7, 1.3e7, -8.7e7)), so the conservative-entry proof in
-    /// `simd::slab_fma` misses a case at far origins; and `queries::accepting_everything_
-    /// is_the_plain_query` saw an exact tie resolved differently from the filtered query
-    /// (which keeps Ize's test). Both found at merge (2026-11-24), not yet explained; Ize's
-    /// test (the default) passes both. On is the experiment `bench` measures.
+    /// build has FMA: [`FMA_SLAB`], and only over triangle leaves: the slack that makes
+    /// it agree with brute force bounds the triangle test's error in `t`, see
+    /// `simd::slab_fma`). **Off by default**: the far-origin misses found at the merge
+    /// are explained and fixed (the triangle test's `t` lies ulps below its own box at
+    /// 10^8; each ray now widens its interval by `t_slack`), and with it on the suite's
+    /// `rays_from_far_away_agree_with_brute_force`, `queries` (the filtered query takes
+    /// the same node test) and `simd_equivalence` pass; but it did not measure faster
+    /// (bunny, 1 thread, load 9, `cpu` 0.16-0.22, per CPU-second: `bvh8-single` diffuse
+    /// 3.0 vs 2.5 with FMA, primary 9.0 vs 7.6; `bvh8-stream` diffuse 3.1 vs 3.0;
+    /// `bvh4-single` diffuse 2.7 vs 2.7). On is the experiment `bench`'s `+fma` modes run.
     pub fn set_fma_slab(&mut self, on: bool) {
-        self.fma_slab = on && FMA_SLAB;
+        self.fma_slab = on && FMA_SLAB && matches!(self.leaves, Leaves::Triangles(_));
     }
 
     /// Whether the FMA single-ray kernel calls its leaf test out of line.
