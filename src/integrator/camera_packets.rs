@@ -31,6 +31,10 @@ use crate::simd::camera::{
 use crate::simd::{Lanes, PACKET_WIDTH, Packet};
 use crate::stats::EffectSamplesDrawn;
 
+/// The pixels of [`CameraSampler::block_rays`] (`(x, y, index in the image)`) and the
+/// 4x4 blocks they consist of (or none).
+pub(crate) type PixelBlocks<'a> = (&'a [(u32, u32, u64)], &'a [(u32, u32)]);
+
 /// Reusable staging buffers of [`CameraSampler::block_rays`]: one entry per ray,
 /// structure of arrays, padded to whole packets.
 #[derive(Default)]
@@ -249,8 +253,7 @@ impl CameraSampler {
     pub fn block_rays(
         &self,
         seed: u64,
-        pixels: &[(u32, u32, u64)],
-        blocks: &[(u32, u32)],
+        (pixels, blocks): PixelBlocks,
         st: &mut CameraStaging,
         offsets: &mut Vec<(f32, f32)>,
         rays: &mut Vec<Ray>,
@@ -520,8 +523,7 @@ mod tests {
                         let mut st = CameraStaging::default();
                         camera.block_rays(
                             5,
-                            &pixels,
-                            &[],
+                            (&pixels, &[]),
                             &mut st,
                             &mut off,
                             &mut rays,
@@ -631,8 +633,14 @@ mod tests {
                     for list in [&blocks, &shifted] {
                         assert_eq!(blocks_match(&pixels, list), list == &blocks);
                         let (mut rays, mut off) = (Vec::new(), Vec::new());
-                        camera
-                            .block_rays(5, &pixels, list, &mut st, &mut off, &mut rays, &mut drawn);
+                        camera.block_rays(
+                            5,
+                            (&pixels, list),
+                            &mut st,
+                            &mut off,
+                            &mut rays,
+                            &mut drawn,
+                        );
                         assert_eq!(rays.len(), want_rays.len());
                         for (i, (g, r)) in rays.iter().zip(&want_rays).enumerate() {
                             let bits = |r: &Ray| {

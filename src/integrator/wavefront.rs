@@ -329,8 +329,7 @@ fn render_tile(
         let whole = ws.blocks.len() * (BLOCK * BLOCK) as usize == ws.pixels.len();
         camera.block_rays(
             opts.seed,
-            &ws.pixels,
-            if whole { &ws.blocks } else { &[] },
+            (&ws.pixels, if whole { &ws.blocks } else { &[] }),
             &mut ws.staging,
             &mut ws.offsets,
             &mut generated,
