@@ -23,10 +23,17 @@ use super::sampling::{
 };
 use crate::geometry::Ray;
 use crate::geometry::warp::sample_aperture;
+use crate::scene::CameraFrame;
 use crate::simd::aperture::concentric_disk;
-use crate::simd::camera::{camera_rays, shutter_times};
+use crate::simd::camera::{
+    RayLanes, camera_rays, column_term, pinhole_rays, row_term, shutter_times,
+};
 use crate::simd::{Lanes, PACKET_WIDTH, Packet};
 use crate::stats::EffectSamplesDrawn;
+
+/// The pixels of [`CameraSampler::block_rays`] (`(x, y, index in the image)`) and the
+/// 4x4 blocks they consist of (or none).
+pub(crate) type PixelBlocks<'a> = (&'a [(u32, u32, u64)], &'a [(u32, u32)]);
 
 /// Reusable staging buffers of [`CameraSampler::block_rays`]: one entry per ray,
 /// structure of arrays, padded to whole packets.
@@ -43,6 +50,98 @@ pub(crate) struct CameraStaging {
     lv: Vec<f32>,
     /// Eye-sample offsets shared by every pixel (constant plans only).
     constant: Vec<(f32, f32)>,
+    /// Pinhole direction terms per image column and row (one-offset plans).
+    terms: PinholeTerms,
+}
+
+/// The column and row terms of the pinhole direction
+/// ([`crate::simd::camera::pinhole_rays`]) for every column and row of the image, at
+/// the one eye-sample offset `(ox, oy)` of a constant plan: `cols[a][x]` is `forward[a]
+/// + sx right[a]` at `px = x + ox`, `rows[a][y]` is `sy up[a]` at `py = y + oy`. Made
+/// on first use and again whenever the frame or the offset differs (`key`).
+#[derive(Default)]
+struct PinholeTerms {
+    key: Option<[u32; 17]>,
+    cols: [Vec<f32>; 3],
+    rows: [Vec<f32>; 3],
+}
+
+impl PinholeTerms {
+    /// The terms for `frame` at offset `(ox, oy)`, made if they are not those.
+    fn update(&mut self, frame: &CameraFrame, (ox, oy): (f32, f32)) -> &Self {
+        let (e, f, r, u) = (frame.eye, frame.forward, frame.right, frame.up);
+        let key = [
+            e.x,
+            e.y,
+            e.z,
+            f.x,
+            f.y,
+            f.z,
+            r.x,
+            r.y,
+            r.z,
+            u.x,
+            u.y,
+            u.z,
+            frame.tan_half,
+            frame.width,
+            frame.height,
+            ox,
+            oy,
+        ]
+        .map(f32::to_bits);
+        if self.key != Some(key) {
+            // Pixel coordinates are integers below 2^24 here (the image size is
+            // validated far below that), so `x as f32` is exact, as in the lane path.
+            let (w, h) = (frame.width as usize, frame.height as usize);
+            for c in &mut self.cols {
+                c.clear();
+            }
+            for r in &mut self.rows {
+                r.clear();
+            }
+            for x in 0..w {
+                let t = column_term(frame, x as f32 + ox);
+                for (c, t) in self.cols.iter_mut().zip(t) {
+                    c.push(t);
+                }
+            }
+            for y in 0..h {
+                let t = row_term(frame, y as f32 + oy);
+                for (r, t) in self.rows.iter_mut().zip(t) {
+                    r.push(t);
+                }
+            }
+            self.key = Some(key);
+        }
+        self
+    }
+
+    /// The rays of the 4x4 pixel block with top-left pixel `(bx, by)`, lane `i` at
+    /// pixel `(bx + i % 4, by + i / 4)`; `None` if the block reaches past the tables.
+    #[inline(always)]
+    fn block(
+        &self,
+        eye: glam::Vec3,
+        (bx, by): (u32, u32),
+        time: Packet,
+    ) -> Option<RayLanes<Packet>> {
+        let (bx, by) = (bx as usize, by as usize);
+        let col = |a: usize| -> Option<Packet> {
+            let c: &[f32; 4] = self.cols[a].get(bx..bx + 4)?.try_into().ok()?;
+            Some(Packet::new(std::array::from_fn(|i| c[i % 4])))
+        };
+        let row = |a: usize| -> Option<Packet> {
+            let r: &[f32; 4] = self.rows[a].get(by..by + 4)?.try_into().ok()?;
+            Some(Packet::new(std::array::from_fn(|i| r[i / 4])))
+        };
+        Some(pinhole_rays(
+            eye,
+            [col(0)?, col(1)?, col(2)?],
+            [row(0)?, row(1)?, row(2)?],
+            time,
+        ))
+    }
 }
 
 impl CameraSampler {
@@ -54,6 +153,41 @@ impl CameraSampler {
             && p.time == 0
             && (p.sampler == SamplerKind::Grid
                 || (p.sampler == SamplerKind::Jittered && p.eye == 1))
+    }
+
+    /// Whether [`camera_rays`] reduces to [`pinhole_rays`] for this camera: a
+    /// perspective frame, no lens, and no eye motion applied (no shutter interval or
+    /// no motion).
+    fn plain_pinhole(&self) -> bool {
+        let [s0, s1] = self.lens.shutter;
+        self.frame.ortho_half_height.is_none()
+            && self.plan.lens == 0
+            && !(self.lens.eye_motion != glam::Vec3::ZERO && s1 > s0)
+    }
+
+    /// The rays through `pixels` at the one offset `(ox, oy)`, 16 image points at a
+    /// time into lanes, at the shutter time `closed`.
+    fn point_rays(
+        &self,
+        pixels: &[(u32, u32, u64)],
+        (ox, oy): (f32, f32),
+        closed: Packet,
+        rays: &mut Vec<Ray>,
+    ) {
+        for chunk in pixels.chunks(PACKET_WIDTH) {
+            let (mut px, mut py) = ([0.5f32; PACKET_WIDTH], [0.5f32; PACKET_WIDTH]);
+            if let Ok(full) = <&[_; PACKET_WIDTH]>::try_from(chunk) {
+                // A whole packet: a fixed-length loop the compiler vectorises.
+                px = full.map(|(x, _, _)| x as f32 + ox);
+                py = full.map(|(_, y, _)| y as f32 + oy);
+            } else {
+                for (i, &(x, y, _)) in chunk.iter().enumerate() {
+                    (px[i], py[i]) = (x as f32 + ox, y as f32 + oy);
+                }
+            }
+            let (px, py) = (Packet::new(px), Packet::new(py));
+            camera_rays(&self.frame, &self.lens, px, py, None, closed).append(chunk.len(), rays);
+        }
     }
 
     /// [`draw_sets`](CameraSampler::draw_sets) for the lane path: the same draws from
@@ -108,10 +242,18 @@ impl CameraSampler {
     /// The camera rays of `pixels` (`(x, y, index in the image)`), appended to `rays`,
     /// and their eye-sample offsets, appended to `offsets`: exactly what
     /// [`pixel_samples`](CameraSampler::pixel_samples) gives pixel by pixel.
+    ///
+    /// `blocks` may name the 4x4 pixel blocks `pixels` consists of, in order (block
+    /// `(bx, by)` is pixels `(bx + i % 4, by + i / 4, _)` for `i` in `0..16`), or be
+    /// empty. With one eye-sample offset per pixel and a plain pinhole, the rays of a
+    /// named block are summed from per-column and per-row terms
+    /// ([`crate::simd::camera::pinhole_rays`], the same bits) instead of computing
+    /// each image point; a `blocks` that does not match `pixels` is not used (its
+    /// first and last pixels are checked per block).
     pub fn block_rays(
         &self,
         seed: u64,
-        pixels: &[(u32, u32, u64)],
+        (pixels, blocks): PixelBlocks,
         st: &mut CameraStaging,
         offsets: &mut Vec<(f32, f32)>,
         rays: &mut Vec<Ray>,
@@ -145,21 +287,21 @@ impl CameraSampler {
                 offsets.extend(std::iter::repeat_n((ox, oy), pixels.len()));
                 rays.reserve(pixels.len());
                 let closed = Packet::splat(self.lens.shutter[0]);
-                for chunk in pixels.chunks(PACKET_WIDTH) {
-                    let (mut px, mut py) = ([0.5f32; PACKET_WIDTH], [0.5f32; PACKET_WIDTH]);
-                    if let Ok(full) = <&[_; PACKET_WIDTH]>::try_from(chunk) {
-                        // A whole packet: a fixed-length loop the compiler vectorises.
-                        px = full.map(|(x, _, _)| x as f32 + ox);
-                        py = full.map(|(_, y, _)| y as f32 + oy);
-                    } else {
-                        for (i, &(x, y, _)) in chunk.iter().enumerate() {
-                            (px[i], py[i]) = (x as f32 + ox, y as f32 + oy);
-                        }
+                if self.plain_pinhole() && blocks_match(pixels, blocks) {
+                    let terms = st.terms.update(&self.frame, (ox, oy));
+                    for (k, &b) in blocks.iter().enumerate() {
+                        let Some(lanes) = terms.block(self.frame.eye, b, closed) else {
+                            // Past the tables (a pixel outside the image): the general
+                            // path from this block on.
+                            let rest = &pixels[k * PACKET_WIDTH..];
+                            self.point_rays(rest, (ox, oy), closed, rays);
+                            return;
+                        };
+                        lanes.append(PACKET_WIDTH, rays);
                     }
-                    let (px, py) = (Packet::new(px), Packet::new(py));
-                    camera_rays(&self.frame, &self.lens, px, py, None, closed)
-                        .append(chunk.len(), rays);
+                    return;
                 }
+                self.point_rays(pixels, (ox, oy), closed, rays);
                 return;
             }
         }
@@ -282,6 +424,30 @@ impl CameraSampler {
     }
 }
 
+/// Whether `pixels` are the 4x4 blocks `blocks` in order (see
+/// [`CameraSampler::block_rays`]): the counts agree and each block's first and last
+/// pixels are its corners (all sixteen are compared in debug builds).
+fn blocks_match(pixels: &[(u32, u32, u64)], blocks: &[(u32, u32)]) -> bool {
+    const B: usize = PACKET_WIDTH;
+    const _: () = assert!(B == 16);
+    !blocks.is_empty()
+        && pixels.len() == B * blocks.len()
+        && blocks
+            .iter()
+            .zip(pixels.chunks_exact(B))
+            .all(|(&(bx, by), p)| {
+                let corners = (p[0].0, p[0].1, p[B - 1].0, p[B - 1].1) == (bx, by, bx + 3, by + 3);
+                debug_assert!(
+                    !corners
+                        || p.iter().enumerate().all(|(i, &(x, y, _))| {
+                            (x, y) == (bx + i as u32 % 4, by + i as u32 / 4)
+                        }),
+                    "block ({bx}, {by}) does not match its pixels"
+                );
+                corners
+            })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -355,7 +521,14 @@ mod tests {
                         let (mut rays, mut off) = (Vec::new(), Vec::new());
                         let mut drawn = EffectSamplesDrawn::default();
                         let mut st = CameraStaging::default();
-                        camera.block_rays(5, &pixels, &mut st, &mut off, &mut rays, &mut drawn);
+                        camera.block_rays(
+                            5,
+                            (&pixels, &[]),
+                            &mut st,
+                            &mut off,
+                            &mut rays,
+                            &mut drawn,
+                        );
                         let bits = |r: &Ray| {
                             [
                                 r.origin.to_array(),
@@ -380,5 +553,118 @@ mod tests {
             }
         }
         assert_eq!(cases, 5 * 2 * 5 * 3);
+    }
+
+    /// Pixels given as 4x4 blocks (the wavefront's usual chunk): with one offset per
+    /// pixel the rays come from per-column and per-row terms, and they are the scalar
+    /// oracle's bit for bit, with the same offsets, for a perspective pinhole (terms),
+    /// orthographic and moving cameras (the general path), blocks reaching past the
+    /// image (the general path from there), both constant samplers and both filters;
+    /// and a block list that does not match the pixels is not used.
+    #[test]
+    fn block_rays_of_4x4_blocks_equal_pixel_samples() {
+        let cam = Camera {
+            eye: Vec3::new(-0.4, 2.1, 4.7),
+            target: Vec3::new(0.2, 0.3, -0.1),
+            up: Vec3::Y,
+            vfov_deg: 38.0,
+        };
+        let moving = CameraEffects {
+            shutter: [0.0, 1.0],
+            eye1: Some(Vec3::new(0.0, 2.0, 4.0)),
+            ..Default::default()
+        };
+        let ortho = CameraEffects {
+            ortho_height: Some(3.0),
+            ..Default::default()
+        };
+        let (w, h) = (42, 30);
+        // Every whole block of the image, then one reaching past its right edge.
+        let mut blocks: Vec<(u32, u32)> = (0..h / 4)
+            .flat_map(|by| (0..w / 4).map(move |bx| (4 * bx, 4 * by)))
+            .collect();
+        blocks.push((w - 2, 8));
+        let pixels: Vec<(u32, u32, u64)> = blocks
+            .iter()
+            .flat_map(|&(bx, by)| {
+                (0..16u32).map(move |i| {
+                    let (x, y) = (bx + i % 4, by + i / 4);
+                    (x, y, (y * w + x) as u64)
+                })
+            })
+            .collect();
+        let shifted: Vec<(u32, u32)> = blocks.iter().map(|&(x, y)| (x, y + 1)).collect();
+        let mut cases = 0;
+        for (effects, terms) in [
+            (CameraEffects::default(), true),
+            (moving, false),
+            (ortho, false),
+        ] {
+            for sampler in [SamplerKind::Jittered, SamplerKind::Grid] {
+                for filter in [FilterKind::Box, FilterKind::Gaussian] {
+                    let plan = SamplePlan {
+                        eye: 1,
+                        lens: 0,
+                        time: 0,
+                        shadow: 1,
+                        glossy: 1,
+                        environment: 0,
+                        sampler,
+                        filter,
+                        eye_begin: 0,
+                        eye_end: 1,
+                    };
+                    let camera = CameraSampler {
+                        frame: cam.frame(w, h).with_effects(&effects),
+                        lens: LensFrame::new(&cam, &effects),
+                        plan,
+                    };
+                    assert!(camera.constant_offsets());
+                    assert_eq!(camera.plain_pinhole(), terms);
+                    let (mut want_rays, mut want_off) = (Vec::new(), Vec::new());
+                    let mut drawn = EffectSamplesDrawn::default();
+                    let mut s = PixelSamples::default();
+                    for &(x, y, index) in &pixels {
+                        camera.pixel_samples(5, index, x, y, &mut s, &mut drawn);
+                        want_rays.extend_from_slice(&s.rays);
+                        want_off.extend_from_slice(&s.offsets);
+                    }
+                    let mut st = CameraStaging::default();
+                    for list in [&blocks, &shifted] {
+                        assert_eq!(blocks_match(&pixels, list), list == &blocks);
+                        let (mut rays, mut off) = (Vec::new(), Vec::new());
+                        camera.block_rays(
+                            5,
+                            (&pixels, list),
+                            &mut st,
+                            &mut off,
+                            &mut rays,
+                            &mut drawn,
+                        );
+                        assert_eq!(rays.len(), want_rays.len());
+                        for (i, (g, r)) in rays.iter().zip(&want_rays).enumerate() {
+                            let bits = |r: &Ray| {
+                                [
+                                    r.origin.to_array(),
+                                    r.dir.to_array(),
+                                    [r.tmin, r.tmax, r.time],
+                                ]
+                                .map(|a| a.map(f32::to_bits))
+                            };
+                            assert_eq!(
+                                bits(g),
+                                bits(r),
+                                "{sampler} {filter} ray {i}: {g:?} vs {r:?}"
+                            );
+                        }
+                        assert_eq!(off, want_off);
+                    }
+                    // The terms were made for this camera (and only when used).
+                    assert_eq!(st.terms.key.is_some(), terms);
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 12);
     }
 }

@@ -89,15 +89,7 @@ pub(crate) fn resolve_pixels(
         return;
     }
     if rays == 1 && plan.filter == super::FilterKind::Box {
-        // Weight 1: `single_value` reduces to this (`+ 0` as `one_sample_value`).
-        for (&r, &a) in radiance.iter().zip(at) {
-            out.values[a as usize] = if r.is_finite() {
-                r + Vec3::ZERO
-            } else {
-                *nonfinite += 1;
-                Vec3::ZERO
-            };
-        }
+        box_one_ray(radiance, at, nonfinite, out.values);
         return;
     }
     if rays == 1 {
@@ -137,6 +129,52 @@ pub(crate) fn resolve_pixels(
         );
         out.values[a as usize] = s.value();
     }
+}
+
+/// One ray per pixel, box filter: weight 1, so [`single_value`] reduces to `r + 0`
+/// (as `one_sample_value`), and black for a non-finite `r` (counted).
+///
+/// Four pixels at a time where they lie side by side in `values` (a 4x4 block's row,
+/// as the wavefront generates them) and all twelve components are finite: one check of
+/// the run, one bounds check, twelve additions the compiler vectorises; any other
+/// pixel the plain way. Measured before (callgrind, bunny 1024x1024, 1 thread): the
+/// plain loop, 29 instructions per pixel. Returns how many pixels went four at a time.
+#[inline]
+fn box_one_ray(radiance: &[Vec3], at: &[u32], nonfinite: &mut u64, values: &mut [Vec3]) -> usize {
+    let one = |r: Vec3, nonfinite: &mut u64| {
+        if r.is_finite() {
+            r + Vec3::ZERO
+        } else {
+            *nonfinite += 1;
+            Vec3::ZERO
+        }
+    };
+    let n = radiance.len().min(at.len());
+    let (mut g, mut runs) = (0, 0);
+    while g < n {
+        if let (Some(r), Some(a)) = (radiance.get(g..g + 4), at.get(g..g + 4)) {
+            let a0 = a[0] as usize;
+            let side_by_side =
+                a[1] as usize == a0 + 1 && a[2] as usize == a0 + 2 && a[3] as usize == a0 + 3;
+            let c: [f32; 12] = std::array::from_fn(|i| r[i / 3][i % 3]);
+            // Finite: below infinity in magnitude (false for NaN), no early exit.
+            let finite = c.iter().fold(true, |ok, x| ok & (x.abs() < f32::INFINITY));
+            if side_by_side
+                && finite
+                && let Some(dst) = values.get_mut(a0..a0 + 4)
+            {
+                let v = c.map(|x| x + 0.0);
+                for (k, d) in dst.iter_mut().enumerate() {
+                    *d = Vec3::new(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
+                }
+                (g, runs) = (g + 4, runs + 4);
+                continue;
+            }
+        }
+        values[at[g] as usize] = one(radiance[g], nonfinite);
+        g += 1;
+    }
+    runs
 }
 
 /// The value of a pixel with one eye sample of one ray: what [`add_single`] into
@@ -242,6 +280,58 @@ mod tests {
             eye_begin: 0,
             eye_end: eye,
         }
+    }
+
+    /// The box filter's one-ray path (four side-by-side pixels at a time) gives the
+    /// values and the non-finite count of the general one-ray step (`single_value`
+    /// at weight 1), bit for bit, on
+    /// pixels laid out as a tile's 4x4 blocks (runs of four side by side), in reverse
+    /// and in order, with non-finite and signed-zero components among them; and it
+    /// does take the four-pixel path on most of the in-order pixels.
+    #[test]
+    fn box_one_ray_runs_equal_the_plain_loop() {
+        let mut rng = PixelRng::new(23, 8);
+        let specials = [f32::NAN, f32::INFINITY, -f32::INFINITY, -0.0, 0.0];
+        let n = 16 * 16;
+        let radiance: Vec<Vec3> = (0..n)
+            .map(|_| {
+                Vec3::from_array(std::array::from_fn(|_| {
+                    let u = rng.next_f32();
+                    if u < 0.02 {
+                        specials[(u * 250.0) as usize]
+                    } else {
+                        (rng.next_f32() - 0.3) * 10f32.powi((u * 20.0) as i32 - 10)
+                    }
+                }))
+            })
+            .collect();
+        // A 16x16 tile's pixels in 4x4 blocks, row-major positions in the tile.
+        let blocks: Vec<u32> = (0..n as u32)
+            .map(|i| {
+                let (b, k) = (i / 16, i % 16);
+                (4 * (b / 4) + k / 4) * 16 + 4 * (b % 4) + k % 4
+            })
+            .collect();
+        let reversed: Vec<u32> = blocks.iter().rev().copied().collect();
+        let mut ran = 0;
+        for at in [&blocks, &reversed] {
+            let (mut want, mut want_nf) = (vec![Vec3::NAN; n], 0);
+            for (&r, &a) in radiance.iter().zip(at) {
+                want[a as usize] =
+                    single_value(&plan(FilterKind::Box, 1, 0), (0.5, 0.5), r, &mut want_nf);
+            }
+            let (mut got, mut got_nf) = (vec![Vec3::NAN; n], 0);
+            ran += box_one_ray(&radiance, at, &mut got_nf, &mut got);
+            assert_eq!(got_nf, want_nf);
+            let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
+            for (a, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert_eq!(bits(g), bits(w), "pixel {a}");
+            }
+            assert!(want_nf > 0);
+        }
+        // In order: every run of four without a non-finite component (about 86 %
+        // of them: 1.2 % of the components are NaN or infinite); reversed: none.
+        assert!(ran > n / 2, "{ran}");
     }
 
     /// The shortcuts (`resolve_pixel_into`'s one ray per eye sample, and

@@ -157,6 +157,9 @@ struct Workspace {
     /// generated (`(x, y, index)`) and their rays, before they enter the bounded queue.
     staging: CameraStaging,
     pixels: Vec<(u32, u32, u64)>,
+    /// The 4x4 blocks `pixels` consists of, while it consists of whole blocks only
+    /// (`CameraSampler::block_rays` sums their rays from per-column and per-row terms).
+    blocks: Vec<(u32, u32)>,
     generated: Vec<Ray>,
     /// The part of `generated` that fits the batch, when not all of it does.
     split: Vec<Ray>,
@@ -185,6 +188,7 @@ impl Workspace {
         Workspace {
             staging: CameraStaging::default(),
             pixels: Vec::new(),
+            blocks: Vec::new(),
             generated: Vec::new(),
             split: Vec::new(),
             offsets: Vec::new(),
@@ -321,9 +325,11 @@ fn render_tile(
     let mut emit = |ws: &mut Workspace, stages: &mut StageTimes, t: &mut Instant, last: bool| {
         let mut generated = std::mem::take(&mut ws.generated);
         generated.clear();
+        // Whole blocks only: each pushed its 16 pixels and itself.
+        let whole = ws.blocks.len() * (BLOCK * BLOCK) as usize == ws.pixels.len();
         camera.block_rays(
             opts.seed,
-            &ws.pixels,
+            (&ws.pixels, if whole { &ws.blocks } else { &[] }),
             &mut ws.staging,
             &mut ws.offsets,
             &mut generated,
@@ -379,6 +385,7 @@ fn render_tile(
         }
         ws.generated = generated;
         ws.pixels.clear();
+        ws.blocks.clear();
         if last {
             stages.camera += ms_since(*t);
             if !ws.camera.rays.is_empty() {
@@ -389,6 +396,7 @@ fn render_tile(
     let tile_w = tile.x1 - tile.x0;
     let mut t = Instant::now();
     ws.pixels.clear();
+    ws.blocks.clear();
     for by in (tile.y0..tile.y1).step_by(BLOCK as usize) {
         for bx in (tile.x0..tile.x1).step_by(BLOCK as usize) {
             // A block row at a time, up to the chunk's free room, each array extended
@@ -404,6 +412,7 @@ fn render_tile(
                     (x, y, y as u64 * opts.width as u64 + x as u64)
                 });
                 ws.pixels.extend_from_slice(&pixels);
+                ws.blocks.push((bx, by));
                 ws.unresolved.extend_from_slice(
                     &pixels.map(|(x, y, _)| (y - tile.y0) * tile_w + (x - tile.x0)),
                 );
