@@ -61,10 +61,10 @@ use super::sampling::PixelRng;
 use super::shade_stage::{LanePaths, Sinks, push_shadow};
 use super::shader::Shader;
 use super::sobol::SobolDim;
-use super::tiny_shadow::LaneOccluders;
+use super::tiny_shadow::{GroupCull, LaneOccluders};
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
 use crate::simd::lanes3::V3;
-use crate::simd::quad_samples::QuadSamples;
+use crate::simd::quad_samples::{OriginBox, QuadSamples};
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
 
@@ -90,6 +90,8 @@ pub(crate) struct LightPoints {
     /// First and second coordinates, padded to whole lane groups.
     pub u: Vec<f32>,
     pub v: Vec<f32>,
+    /// The sphere culls of the current lane group of shading points.
+    pub cull: GroupCull,
 }
 
 /// One shading point of a lane-shaded material group.
@@ -142,12 +144,33 @@ pub(crate) fn shade_quads(
     // shading point (`QuadSamples`, `quad_light` bit for bit); the queue path keeps
     // `quad_light`.
     let hoisted = quads.occluders.as_ref().and_then(|_| QuadSamples::new(&s));
-    for (index, quad) in &quads.lights {
-        let origins = hoisted.as_ref().map(QuadSamples::origins);
-        let mut near = quads
-            .occluders
-            .as_ref()
-            .map(|o| o.spheres_near(base, origins, quad));
+    // The spheres near each light's segments, from the cull of the point's lane group:
+    // the sixteen hits of the batch from this one on (`GroupCull`).
+    let culled = match (&quads.occluders, &hoisted) {
+        (Some(occluders), Some(fast)) => {
+            points
+                .cull
+                .bits(occluders, fast.origins(), &quads.lights, || {
+                    // (`shade_queue` holds the batch's material runs meanwhile: the
+                    // last group of a run may take hits of the next, a looser box.)
+                    let end = batch.ray.len().max(k + 1);
+                    let live = (1u32 << (end - k).min(16)) - 1;
+                    let lanes = |a: &super::hit_batch::Soa3| a.lanes(k);
+                    let (b, e, n) = (lanes(&batch.base), lanes(&batch.p_error), lanes(&batch.ng));
+                    OriginBox::of_group(b, e, n, live)
+                })
+        }
+        _ => false,
+    };
+    for (i, (index, quad)) in quads.lights.iter().enumerate() {
+        let mut near = quads.occluders.as_ref().map(|o| {
+            let spheres = if culled {
+                points.cull.near(i)
+            } else {
+                o.sphere_bits(None)
+            };
+            o.spheres_near(base, spheres, quad)
+        });
         // The light points straight into lanes (`u`, `v` padded to 16).
         hit_points_split(
             plan.sampler,

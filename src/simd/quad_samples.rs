@@ -9,12 +9,87 @@
 //! direction that makes it take each sign, and selected per lane by the same test, so
 //! every lane holds `quad_light`'s origin bit for bit (a test compares every field).
 //! Everything else is `quad_light`'s arithmetic in its order.
+//!
+//! [`OriginBox`] holds the origins of a lane group of shading points (two per point),
+//! so that the sphere cull of the quad light's segments (`integrator::tiny_shadow::
+//! QuadCull`) is built once per group instead of once per point.
 
-use super::Packet;
 use super::direct_light::{Highlight, QuadLight, ShadowLanes, SurfaceLanes, reflectance};
 use super::lanes3::{V3, offset_ray_origin};
+use super::{Lanes, Packet};
 use crate::geometry::SPAWN_TO_ERROR;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+
+/// An axis-aligned box of f32 corners holding shadow-ray origins: those of the
+/// shading points of a lane group ([`of_group`](Self::of_group)), or of one point
+/// ([`of`](Self::of)). Whether a point's origins lie in it ([`covers`](Self::covers))
+/// is decided by f32 comparisons, exactly; a cull built for the box's ball
+/// ([`ball`](Self::ball)) then holds for that point's segments whatever points built
+/// the box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OriginBox {
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl OriginBox {
+    /// The box of both origins (`QuadSamples::origins`) of each shading point of the
+    /// lanes in `live` (one point per lane: `base`, `p_error` and `n_g` as
+    /// `QuadSamples::new` takes them), leaving out lanes with `n_g · n_g` not positive
+    /// (`QuadSamples::new` refuses them) or a non-finite origin. `None` where no lane
+    /// is left.
+    #[inline(always)]
+    pub fn of_group(base: V3, p_error: V3, ng: V3, live: u32) -> Option<OriginBox> {
+        let plain = offset_ray_origin(base, p_error, ng, ng);
+        let flipped = offset_ray_origin(base, p_error, ng, ng.negated());
+        let finite = |v: &V3| (v.x.is_finite() & v.y.is_finite() & v.z.is_finite()).bitmask();
+        let nn = ng.dot(ng).simd_gt(Packet::splat(0.0)).bitmask();
+        let live = live & 0xffff & nn & finite(&plain) & finite(&flipped);
+        if live == 0 {
+            return None;
+        }
+        let fill = <Packet as Lanes>::mask_from_bits(live);
+        let v = plain.lane(live.trailing_zeros() as usize & 15);
+        let fill = |o: &V3| V3::select(fill, *o, V3::splat(v));
+        let (a, b) = (fill(&plain), fill(&flipped));
+        let (lo, hi) = (a.x.minps(b.x), a.x.maxps(b.x));
+        let (ly, hy) = (a.y.minps(b.y), a.y.maxps(b.y));
+        let (lz, hz) = (a.z.minps(b.z), a.z.maxps(b.z));
+        let low = |p: Packet| p.to_array().into_iter().fold(f32::INFINITY, f32::min);
+        let high = |p: Packet| p.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
+        Some(OriginBox {
+            lo: Vec3::new(low(lo), low(ly), low(lz)),
+            hi: Vec3::new(high(hi), high(hy), high(hz)),
+        })
+    }
+
+    /// The box of two origins; `None` where one is not finite.
+    pub fn of(origins: [Vec3; 2]) -> Option<OriginBox> {
+        let [a, b] = origins;
+        (a.is_finite() && b.is_finite()).then(|| OriginBox {
+            lo: a.min(b),
+            hi: a.max(b),
+        })
+    }
+
+    /// Whether both `origins` lie in the box (f32 comparisons: exact; NaN is not in
+    /// it).
+    #[inline(always)]
+    pub fn covers(&self, origins: [Vec3; 2]) -> bool {
+        origins
+            .iter()
+            .all(|o| o.cmpge(self.lo).all() && o.cmple(self.hi).all())
+    }
+
+    /// `(g, rho)`: the box's centre and half diagonal in f64, so that every point of
+    /// the box lies within `rho` of `g` up to a few f64 roundings of `g` and `rho`
+    /// (relative `2^-52` of `|g| + rho`), which the cull's slack (`2^-40` of the
+    /// magnitudes) covers.
+    pub fn ball(&self) -> (DVec3, f64) {
+        let (lo, hi) = (self.lo.as_dvec3(), self.hi.as_dvec3());
+        ((lo + hi) * 0.5, (hi - lo).length() * 0.5)
+    }
+}
 
 /// The per-shading-point part of `quad_light`: the two possible shadow-ray origins.
 #[derive(Clone, Copy, Debug)]
