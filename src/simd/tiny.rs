@@ -672,7 +672,7 @@ mod tests {
                 }
                 rays.push(r);
             }
-            for key in 0..6 {
+            for (key, count) in groups.iter_mut().enumerate() {
                 let of_key: Vec<&Ray> = rays.iter().filter(|r| shear_key(r) == Some(key)).collect();
                 if of_key.is_empty() {
                     continue;
@@ -723,7 +723,7 @@ mod tests {
                         }
                     }
                 }
-                groups[key] += 1;
+                *count += 1;
                 shared_groups += shared as usize;
                 one_half += (mask & 0xff == 0 || mask >> 8 == 0) as usize;
             }
