@@ -517,7 +517,7 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
 /// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
 /// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
-pub(super) fn advise_huge_pages(ptr: *mut u8, len: usize) {
+fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;

@@ -4,7 +4,7 @@
 
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
-use crate::accel::sah_build::{BuildNode, advise_huge_pages};
+use crate::accel::sah_build::BuildNode;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use rayon::prelude::*;
@@ -62,13 +62,12 @@ impl<const N: usize> Collapse<'_, N> {
         let ids = self.ids;
         let blocks: usize = leaves.iter().map(|l| (l.1 as usize).div_ceil(4)).sum();
         self.groups.reserve(blocks);
-        // The groups are written once, in order: fresh pages, backed by huge pages where
-        // the kernel allows (40 bytes per triangle). Measured at 10^6 triangles, 1
-        // thread, load 8-9: page faults per build 17,547 -> 8,349; CPU ms per build not
-        // resolved (three interleaved rounds: 612 / 431 / 468 without, 505 / 679 / 498
-        // with).
-        let spare = self.groups.spare_capacity_mut();
-        advise_huge_pages(spare.as_mut_ptr().cast(), std::mem::size_of_val(spare));
+        // Dead end (build5, 2026-11-24): advising the groups' fresh pages to be huge pages
+        // (madvise) halved the page faults of a 10^6 build (17,547 -> 8,349) but not its
+        // CPU time: 1 thread, load 8-12, CPU ms per build, interleaved rounds' medians:
+        // without 612 / 431 / 468, with 505 / 679 / 498; against the build before the
+        // two-pass collapse, seven rounds 551..596 (median 542) before, 498..679 (median
+        // 610) with the advice. Removed.
         for (i, &(first, count)) in leaves.iter().enumerate() {
             if let Some(&(f, c)) = leaves.get(i + GATHER_AHEAD) {
                 for &id in &ids[f as usize..(f + c) as usize] {
