@@ -103,17 +103,7 @@ impl<const N: usize> Collapse<'_, N> {
         let (kids, n) = open_children::<N>(children);
         let kids = &kids[..n];
         let index = self.nodes.len();
-        self.nodes.push(BvhNode {
-            planes: [
-                [f32::INFINITY; N],
-                [f32::INFINITY; N],
-                [f32::INFINITY; N],
-                [f32::NEG_INFINITY; N],
-                [f32::NEG_INFINITY; N],
-                [f32::NEG_INFINITY; N],
-            ],
-            children: [EMPTY_CHILD; N],
-        });
+        self.nodes.push(BvhNode::EMPTY);
         let mut refs = [EMPTY_CHILD; N];
         if parallel_levels > 0 {
             // Each child's subtree into arrays of its own, appended in slot order: the
@@ -303,17 +293,7 @@ mod tests {
             kids.push(&children[1]);
         }
         let index = nodes.len();
-        nodes.push(BvhNode {
-            planes: [
-                [f32::INFINITY; N],
-                [f32::INFINITY; N],
-                [f32::INFINITY; N],
-                [f32::NEG_INFINITY; N],
-                [f32::NEG_INFINITY; N],
-                [f32::NEG_INFINITY; N],
-            ],
-            children: [EMPTY_CHILD; N],
-        });
+        nodes.push(BvhNode::EMPTY);
         for (slot, k) in kids.iter().enumerate() {
             let r = reference(k, ids, tris, nodes, groups);
             let b = k.bounds();

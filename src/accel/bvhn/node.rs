@@ -28,6 +28,22 @@ pub type Bvh4Node = BvhNode<4>;
 /// An 8-wide node: 224 bytes of bounds and references, padded to four cache lines.
 pub type Bvh8Node = BvhNode<8>;
 
+impl<const N: usize> BvhNode<N> {
+    /// A node with every slot unused: empty boxes (min +inf, max -inf) that no ray
+    /// enters, and `EMPTY_CHILD` references. Builders fill its slots in place.
+    pub const EMPTY: Self = Self {
+        planes: [
+            [f32::INFINITY; N],
+            [f32::INFINITY; N],
+            [f32::INFINITY; N],
+            [f32::NEG_INFINITY; N],
+            [f32::NEG_INFINITY; N],
+            [f32::NEG_INFINITY; N],
+        ],
+        children: [EMPTY_CHILD; N],
+    };
+}
+
 const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
 const _: () = assert!(std::mem::align_of::<Bvh4Node>() == 64);
 const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
