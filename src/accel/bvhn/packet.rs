@@ -23,8 +23,16 @@ struct PacketHits<L: Lanes> {
     t: L::Array,
     u: L::Array,
     v: L::Array,
-    prim: [u32; 16],
+    /// Primitive ids as `f32` bit patterns (moved by blends only, never by arithmetic),
+    /// so a hit updates every lane's id with one select instead of a loop over its bits.
+    prim: L::Array,
     hit: u32,
+}
+
+/// `id` as the lane value of [`PacketHits::prim`].
+#[inline(always)]
+fn prim_lanes<L: Lanes>(id: u32) -> L {
+    L::splat(f32::from_bits(id))
 }
 
 impl<P: Primitives, const N: usize, T: WideNode<N>> Bvh<P, N, T>
@@ -60,7 +68,7 @@ where
             for_each_bit(hits.hit, |i| {
                 out[i] = Some(Hit {
                     t: hits.t.as_ref()[i],
-                    prim: hits.prim[i],
+                    prim: hits.prim.as_ref()[i].to_bits(),
                     u: hits.u.as_ref()[i],
                     v: hits.v.as_ref()[i],
                 })
@@ -79,11 +87,12 @@ where
             t: L::splat(0.0).to_array(),
             u: L::splat(0.0).to_array(),
             v: L::splat(0.0).to_array(),
-            prim: [u32::MAX; 16],
+            prim: L::splat(0.0).to_array(),
             hit: 0,
         };
         let mut tu = L::splat(0.0);
         let mut tv = L::splat(0.0);
+        let mut tprim = prim_lanes::<L>(u32::MAX);
         let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
         let mut cur = self.root;
         let mut cur_enter = p.tmin;
@@ -110,13 +119,11 @@ where
                     let q = &lane_query(rays, i);
                     if let Some(h) = self.closest_from(q, cur, tm.as_ref()[i]) {
                         new_t.as_mut()[i] = h.t;
-                        res.prim[i] = h.prim;
-                        res.u.as_mut()[i] = h.u;
-                        res.v.as_mut()[i] = h.v;
                         res.hit |= 1 << i;
                         let sel = L::mask_from_bits(1 << i);
                         tu = L::select(sel, L::splat(h.u), tu);
                         tv = L::select(sel, L::splat(h.v), tv);
+                        tprim = L::select(sel, prim_lanes(h.prim), tprim);
                     }
                     m &= m - 1;
                 }
@@ -156,20 +163,21 @@ where
                 }
             } else if let Leaves::Scalar { prims, ids } = &self.leaves {
                 for k in leaf_range(cur) {
-                    let (t, u, v, bits) = prims.intersect_lanes(k, &p.lanes, tmax, active, rays);
+                    let (t, u, v, bits) = prims.intersect_lanes(k, &p.lanes(), tmax, active, rays);
                     if bits != 0 {
                         let sel = L::mask_from_bits(bits);
                         tmax = L::select(sel, t, tmax);
                         tu = L::select(sel, u, tu);
                         tv = L::select(sel, v, tv);
                         res.hit |= bits;
-                        for_each_bit(bits, |i| res.prim[i] = ids[k]);
+                        tprim = L::select(sel, prim_lanes(ids[k]), tprim);
                     }
                 }
             } else if let Leaves::Triangles(groups) = &self.leaves {
                 for g in &groups[leaf_range(cur)] {
+                    let cand = bounds.triangle_candidates(g);
                     for lane in 0..4 {
-                        if g.ids[lane] == u32::MAX {
+                        if g.ids[lane] == u32::MAX || cand >> lane & 1 == 0 {
                             continue;
                         }
                         let (t, u, v, bits, edge) =
@@ -201,11 +209,7 @@ where
                             tu = L::select(sel, u, tu);
                             tv = L::select(sel, v, tv);
                             res.hit |= bits;
-                            let mut m = bits;
-                            while m != 0 {
-                                res.prim[m.trailing_zeros() as usize] = g.ids[lane];
-                                m &= m - 1;
-                            }
+                            tprim = L::select(sel, prim_lanes(g.ids[lane]), tprim);
                         }
                     }
                 }
@@ -221,6 +225,7 @@ where
         res.t = tmax.to_array();
         res.u = tu.to_array();
         res.v = tv.to_array();
+        res.prim = tprim.to_array();
         res
     }
 
@@ -311,15 +316,16 @@ where
             } else if let Leaves::Scalar { prims, .. } = &self.leaves {
                 for k in leaf_range(cur) {
                     let live = active & !occluded;
-                    occluded |= prims.intersect_lanes(k, &p.lanes, p.tmax, live, rays).3;
+                    occluded |= prims.intersect_lanes(k, &p.lanes(), p.tmax, live, rays).3;
                     if active & !occluded == 0 {
                         break;
                     }
                 }
             } else if let Leaves::Triangles(groups) = &self.leaves {
                 'groups: for g in &groups[leaf_range(cur)] {
+                    let cand = bounds.triangle_candidates(g);
                     for lane in 0..4 {
-                        if g.ids[lane] == u32::MAX {
+                        if g.ids[lane] == u32::MAX || cand >> lane & 1 == 0 {
                             continue;
                         }
                         let live = active & !occluded;

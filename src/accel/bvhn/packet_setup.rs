@@ -8,9 +8,9 @@ use crate::simd::kernels::{PacketShear, RayLanes};
 
 /// Packet traversal over lanes of type `L`.
 pub(super) struct PacketRays<L: Lanes> {
-    /// Origins, directions and `tmin` as lanes, for scalar-leaf primitives' lane tests.
-    pub(super) lanes: RayLanes<L>,
     pub(super) o: [L; 3],
+    /// Directions, for scalar-leaf primitives' lane tests ([`lanes`](Self::lanes)).
+    pub(super) d: [L; 3],
     pub(super) inv: [L; 3],
     pub(super) inv_far: [L; 3],
     pub(super) tmin: L,
@@ -21,6 +21,18 @@ pub(super) struct PacketRays<L: Lanes> {
 }
 
 impl<L: Lanes> PacketRays<L> {
+    /// Origins, directions and `tmin` as lanes, for scalar-leaf primitives' lane tests
+    /// (built where a scalar leaf needs them: a copy kept in every packet's traversal
+    /// state cost seven vector moves per group, and its reload stalled on store forwarding).
+    #[inline(always)]
+    pub(super) fn lanes(&self) -> RayLanes<L> {
+        RayLanes {
+            o: self.o,
+            d: self.d,
+            tmin: self.tmin,
+        }
+    }
+
     /// Slab test of child `c` of a node (its `planes`) for every lane: entry distances
     /// and hit bits. `tcull` is the closest hit so far, already scaled by
     /// `ROBUST_FAR_SCALE`.
@@ -194,15 +206,13 @@ impl<L: Lanes> PacketSetup<L> {
         if octant >> kz & 1 == 1 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let sz = L::splat(1.0) / self.d[kz];
+        // `1 / d[kz]`, the same division as `inv[kz]` (one fewer per group on the
+        // setup's critical path).
+        let sz = self.inv[kz];
         let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
         PacketRays {
-            lanes: RayLanes {
-                o: self.o,
-                d: self.d,
-                tmin: self.tmin,
-            },
             o: self.o,
+            d: self.d,
             inv: self.inv,
             inv_far: self.inv.map(|x| x * L::splat(ROBUST_FAR_SCALE)),
             tmin: self.tmin,
