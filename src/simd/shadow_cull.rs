@@ -10,6 +10,7 @@ use super::lanes3::V3;
 use super::sphere_clearance::{F64_SLACK, clearance};
 use super::{Lanes, Packet};
 use glam::{DVec3, Vec3};
+use wide::f32x4;
 
 /// `u = 2^-24`, the f32 unit roundoff.
 const U: f64 = 1.0 / (1u64 << 24) as f64;
@@ -60,27 +61,52 @@ impl AxisPlane {
 /// (not empty, finite origins: the valid rays) and its half diagonal, in f64, so that
 /// every such origin lies within `rho` of `g` (the midpoint of two f32 values is exact
 /// in f64; `rho` carries a few f64 roundings, which `sphere_clear`'s slack covers).
+///
+/// The box comes from lane minima and maxima (the lanes outside `live` replaced by
+/// `+inf` and `-inf`), folded four lanes wide then to one. On finite values `minps`/`maxps`
+/// pick the least and greatest lane whatever the order; of `-0.0` and `+0.0` either may
+/// come out, which moves no bound (the box, and every distance `sphere_clear` takes
+/// from it, are the same).
+///
+/// Before: a scalar `f32::min`/`f32::max` fold over the sixteen lanes (NaN checks on
+/// every step) with the lanes outside `live` filled from the first live one; with
+/// `sphere_clear` it was a fifth of the whitted_blur16 profile (perf, 1 thread:
+/// `PointOccluders::settle::{{closure}}` 13.3 %, `sphere_clear` 8.4 %).
 #[inline(always)]
 pub fn origin_ball(o: &V3, live: u32) -> (DVec3, f64) {
-    let first = live.trailing_zeros() as usize & 15;
     let fill = <Packet as Lanes>::mask_from_bits(live);
-    let v = o.lane(first);
-    let (x, y, z) = (
-        fill.select(o.x, Packet::splat(v.x)),
-        fill.select(o.y, Packet::splat(v.y)),
-        fill.select(o.z, Packet::splat(v.z)),
+    let (inf, neg) = (
+        Packet::splat(f32::INFINITY),
+        Packet::splat(f32::NEG_INFINITY),
     );
     let range = |p: Packet| {
-        let a = p.to_array();
-        a.iter()
-            .fold((a[0], a[0]), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+        let (lo, hi) = (fill.select(p, inf), fill.select(p, neg));
+        (
+            reduce(lo, |a, b| a.fast_min(b)),
+            reduce(hi, |a, b| a.fast_max(b)),
+        )
     };
-    let ((lx, hx), (ly, hy), (lz, hz)) = (range(x), range(y), range(z));
+    let ((lx, hx), (ly, hy), (lz, hz)) = (range(o.x), range(o.y), range(o.z));
     let (lo, hi) = (
         DVec3::new(lx as f64, ly as f64, lz as f64),
         DVec3::new(hx as f64, hy as f64, hz as f64),
     );
     ((lo + hi) * 0.5, (hi - lo).length() * 0.5)
+}
+
+/// `f` folded over the lanes of `p` by quarters then halves: for an associative and
+/// commutative `f` (the least or greatest of finite values), the fold.
+#[inline(always)]
+fn reduce(p: Packet, f: impl Fn(f32x4, f32x4) -> f32x4) -> f32 {
+    let a = p.to_array();
+    let q = |k: usize| f32x4::new([a[4 * k], a[4 * k + 1], a[4 * k + 2], a[4 * k + 3]]);
+    let m = f(f(q(0), q(1)), f(q(2), q(3))).to_array();
+    let m = f(
+        f32x4::new([m[0], m[1], m[0], m[1]]),
+        f32x4::new([m[2], m[3], m[2], m[3]]),
+    )
+    .to_array();
+    f(f32x4::splat(m[0]), f32x4::splat(m[1])).to_array()[0]
 }
 
 /// Whether the sphere `(center, radius)` is clear of every shadow segment of a group
@@ -163,6 +189,49 @@ mod tests {
     use super::*;
     use crate::geometry::{RayQuery, intersect_sphere, intersect_triangle, spawn_ray_to};
     use crate::test_rng::xorshift64;
+
+    /// [`origin_ball`]'s lane minima and maxima are the scalar fold's (the
+    /// `f32::min`/`f32::max` fold over the live lanes, compared as numbers: `-0.0`
+    /// and `+0.0` alike): random origins of every size, both signs of zero, random
+    /// lane masks (single lanes, gaps, all sixteen); the stale lanes outside the mask
+    /// hold huge values that must not leak in.
+    #[test]
+    fn origin_ball_is_the_box_of_the_live_origins() {
+        let mut next = xorshift64(0x6a09_e667_f3bc_c908);
+        let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32;
+        for case in 0..20_000 {
+            let scale = [1e-3f32, 1.0, 1e3, 1e6][case % 4];
+            let live = match case % 5 {
+                0 => 0xffff,
+                1 => 1 << (case / 5 % 16),
+                _ => ((unit() * 65536.0) as u32 & 0xffff) | 1 << (case % 16),
+            };
+            let mut c = [[0.0f32; 16]; 3];
+            for (k, axis) in c.iter_mut().enumerate() {
+                for (i, x) in axis.iter_mut().enumerate() {
+                    *x = if live >> i & 1 == 0 {
+                        1e30 * (unit() - 0.5)
+                    } else if (case + i + k) % 7 == 0 {
+                        [0.0, -0.0][i % 2]
+                    } else {
+                        (unit() - 0.5) * scale
+                    };
+                }
+            }
+            let o = V3::load(&c[0], &c[1], &c[2]);
+            let (g, rho) = origin_ball(&o, live);
+            let fold = |a: &[f32; 16]| {
+                let mut it = (0..16).filter(|i| live >> i & 1 == 1).map(|i| a[i]);
+                let first = it.next().expect("a live lane");
+                it.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v)))
+            };
+            let b = c.each_ref().map(fold);
+            let lo = DVec3::new(b[0].0 as f64, b[1].0 as f64, b[2].0 as f64);
+            let hi = DVec3::new(b[0].1 as f64, b[1].1 as f64, b[2].1 as f64);
+            assert_eq!(g, (lo + hi) * 0.5, "case {case} live {live:#x}");
+            assert_eq!(rho, (hi - lo).length() * 0.5, "case {case} live {live:#x}");
+        }
+    }
 
     /// Where [`sphere_clear`] says a sphere is clear of a group's segments, the scalar
     /// sphere test ([`intersect_sphere`], which the lane test repeats bit for bit)
