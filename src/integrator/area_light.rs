@@ -143,7 +143,7 @@ pub(crate) fn shade_quads(
     // The fused path's light samples with the shadow-ray origins computed once per
     // shading point (`QuadSamples`, `quad_light` bit for bit); the queue path keeps
     // `quad_light`.
-    let hoisted = quads.occluders.as_ref().and_then(|_| QuadSamples::new(&s));
+    let hoisted = quads.occluders.as_ref().and_then(|_| QuadSamples::new(&s, &h.hl));
     // The spheres near each light's segments, from the cull of the point's lane group:
     // the sixteen hits of the batch from this one on (`GroupCull`).
     let culled = match (&quads.occluders, &hoisted) {

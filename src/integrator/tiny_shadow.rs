@@ -778,7 +778,7 @@ mod tests {
                 wo: V3::splat(ng),
                 albedo: V3::splat(Vec3::ONE),
             };
-            let fast = QuadSamples::new(&s).expect("a unit normal");
+            let fast = QuadSamples::new(&s, &hl).expect("a unit normal");
             // The light points: corners, edge midpoints, then random ones.
             let fixed = [
                 (0.0, 0.0),
@@ -956,7 +956,7 @@ mod tests {
             let mut covered = Vec::new();
             for i in 0..n {
                 let s = surface(i);
-                let Some(fast) = QuadSamples::new(&s) else {
+                let Some(fast) = QuadSamples::new(&s, &hl) else {
                     continue;
                 };
                 let o = fast.origins();
