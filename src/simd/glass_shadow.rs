@@ -24,7 +24,38 @@ pub fn sphere_crossings<L: Lanes>(
     tmax: L,
     active: u32,
 ) -> (u32, u32) {
-    let (lo, hi, roots) = sphere_roots(r, center, radius);
+    crossings_of_roots(r, sphere_roots(r, center, radius), tmax, active)
+}
+
+/// One sphere's roots of a lane group (`kernels::sphere_roots`: nearer root, farther
+/// root, the bits of the lanes that have them), computed once and read by both
+/// [`meets_of_roots`] and [`crossings_of_roots`] (the lane-settled quad-light shadows:
+/// which lanes meet a sphere, then how many times the glass ones cross it).
+pub type SphereRoots<L> = (L, L, u32);
+
+/// [`sphere_lanes`]`(r, centre, radius, tmax, active).1` from the sphere's roots
+/// `(lo, hi, roots)` (`sphere_roots(r, centre, radius)`): the same operations on the
+/// same values.
+#[inline(always)]
+pub fn meets_of_roots<L: Lanes>(
+    r: &RayLanes<L>,
+    (lo, hi, roots): SphereRoots<L>,
+    tmax: L,
+    active: u32,
+) -> u32 {
+    let first = lo.gt(r.tmin) & lo.lt(tmax);
+    let second = hi.gt(r.tmin) & hi.lt(tmax);
+    (first | second).bitmask() & roots & active
+}
+
+/// [`sphere_crossings`] from the sphere's roots (`sphere_roots(r, centre, radius)`).
+#[inline(always)]
+pub fn crossings_of_roots<L: Lanes>(
+    r: &RayLanes<L>,
+    (lo, hi, roots): SphereRoots<L>,
+    tmax: L,
+    active: u32,
+) -> (u32, u32) {
     let hits = roots & active;
     let first = (lo.gt(r.tmin) & lo.lt(tmax)).bitmask();
     let second = (hi.gt(r.tmin) & hi.lt(tmax)).bitmask();
