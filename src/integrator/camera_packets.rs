@@ -8,9 +8,10 @@
 //! are drawn per pixel by the scalar sampler (each pixel has its own random stream),
 //! the lens set straight into coordinate arrays; a round lens's points are mapped onto
 //! the disk in lanes ([`crate::simd::aperture`], the same bits as the oracle's
-//! `sample_aperture`). A plan whose pixel positions are the same in every pixel (the
-//! grid, or one jittered sample at the centre, without lens or shutter) draws them
-//! once per call.
+//! `sample_aperture`), a polygonal lens's from a table of its corners
+//! ([`super::polygon_aperture`]). A plan whose pixel positions are the same in every
+//! pixel (the grid, or one jittered sample at the centre, without lens or shutter)
+//! draws them once per call.
 //!
 //! With a lens and a perspective frame, every ray of an eye sample passes through the
 //! same focus point: the pinhole direction and the focus point (four divisions and a
@@ -31,11 +32,11 @@
 
 use super::SamplerKind;
 use super::camera_rays::{CameraSampler, PixelSamples};
+use super::polygon_aperture::PolygonAperture;
 use super::sampling::{
     Dimension, PixelRng, decorrelate, decorrelate_pairs, fill_1d, fill_2d, fill_2d_split,
 };
 use crate::geometry::Ray;
-use crate::geometry::warp::sample_aperture;
 use crate::scene::CameraFrame;
 use crate::simd::aperture::concentric_disk;
 use crate::simd::camera::{
@@ -68,6 +69,8 @@ pub(crate) struct CameraStaging {
     lv: Vec<f32>,
     /// Eye-sample offsets shared by every pixel (constant plans only).
     constant: Vec<(f32, f32)>,
+    /// The corners of a polygonal aperture.
+    polygon: PolygonAperture,
     /// Pinhole direction terms per image column and row (one-offset plans).
     terms: PinholeTerms,
 }
@@ -481,11 +484,13 @@ impl CameraSampler {
             }
         }
         // Polygonal apertures: the lens points from the (u, v) staged above, one by
-        // one (the corners come from libm); round ones are mapped in lanes below.
+        // one, from a table of the corners (`polygon_aperture`; libm's cos and sin per
+        // point before); round ones are mapped in lanes below.
         let disk_lanes = plan.lens > 0 && self.lens.blades < 3;
         if plan.lens > 0 && !disk_lanes {
+            let table = st.polygon.update(self.lens.blades, self.lens.rotation);
             for (u, v) in st.lx.iter_mut().zip(&mut st.ly) {
-                let p = sample_aperture(*u, *v, self.lens.blades, self.lens.rotation);
+                let p = table.sample(*u, *v);
                 (*u, *v) = (p.x, p.y);
             }
         }
