@@ -25,6 +25,7 @@ mod output;
 pub mod path_keys;
 pub mod pixel_filter;
 pub(crate) mod point_shadow;
+mod polygon_aperture;
 pub mod queues;
 pub mod recursive;
 pub mod region;

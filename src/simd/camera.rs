@@ -91,21 +91,104 @@ pub fn camera_rays<L: Lanes>(
         dir = normalize([0, 1, 2].map(|a| forward[a] + sx * right[a] + sy * up[a]));
         origin = eye;
     }
-    if let Some((lx, ly)) = lens {
-        let d_f = dir[0] * forward[0] + dir[1] * forward[1] + dir[2] * forward[2];
-        let k = L::splat(lens_frame.focus_distance) / d_f;
-        let focus = [0, 1, 2].map(|a| origin[a] + dir[a] * k);
-        let ap = L::splat(lens_frame.aperture);
-        origin = [0, 1, 2].map(|a| origin[a] + ap * (lx * right[a] + ly * up[a]));
-        dir = normalize([0, 1, 2].map(|a| focus[a] - origin[a]));
+    if let Some(lens) = lens {
+        let focus = focus_point(frame, lens_frame, origin, dir);
+        (origin, dir) = through_lens(frame, lens_frame, origin, focus, lens);
     }
+    RayLanes {
+        origin: moved_eye(lens_frame, origin, time),
+        dir,
+        time,
+    }
+}
+
+/// Where the pinhole ray `origin + t dir` meets the plane of focus:
+/// `origin + dir (focus_distance / dot(dir, forward))`, as [`LensFrame::ray`].
+#[inline(always)]
+fn focus_point<L: Lanes>(
+    frame: &CameraFrame,
+    lens_frame: &LensFrame,
+    origin: [L; 3],
+    dir: [L; 3],
+) -> [L; 3] {
+    let forward = splat3::<L>(frame.forward);
+    let d_f = dir[0] * forward[0] + dir[1] * forward[1] + dir[2] * forward[2];
+    let k = L::splat(lens_frame.focus_distance) / d_f;
+    [0, 1, 2].map(|a| origin[a] + dir[a] * k)
+}
+
+/// The thin-lens step of [`LensFrame::ray`]: the ray leaves `origin` moved by
+/// `aperture (lx right + ly up)` towards `focus`.
+#[inline(always)]
+fn through_lens<L: Lanes>(
+    frame: &CameraFrame,
+    lens_frame: &LensFrame,
+    origin: [L; 3],
+    focus: [L; 3],
+    (lx, ly): (L, L),
+) -> ([L; 3], [L; 3]) {
+    let right = splat3::<L>(frame.right);
+    let up = splat3::<L>(frame.up);
+    let ap = L::splat(lens_frame.aperture);
+    let origin = [0, 1, 2].map(|a| origin[a] + ap * (lx * right[a] + ly * up[a]));
+    let dir = normalize([0, 1, 2].map(|a| focus[a] - origin[a]));
+    (origin, dir)
+}
+
+/// The eye motion step of [`LensFrame::ray`]: `origin` moved by the eye's
+/// displacement at `time` (unchanged without a shutter interval or motion).
+#[inline(always)]
+fn moved_eye<L: Lanes>(lens_frame: &LensFrame, origin: [L; 3], time: L) -> [L; 3] {
     let [s0, s1] = lens_frame.shutter;
     if lens_frame.eye_motion != glam::Vec3::ZERO && s1 > s0 {
         let s = (time - L::splat(s0)) / L::splat(s1 - s0);
         let m = splat3::<L>(lens_frame.eye_motion);
-        origin = [0, 1, 2].map(|a| origin[a] + s * m[a]);
+        return [0, 1, 2].map(|a| origin[a] + s * m[a]);
     }
-    RayLanes { origin, dir, time }
+    origin
+}
+
+/// The focus points of [`camera_rays`] for a perspective frame: where the pinhole
+/// rays through the image points `(px, py)` meet the plane of focus. With
+/// [`lens_rays`] they give `camera_rays` with a lens, the same bits: the thin-lens
+/// rays of one image point share its focus point, so `CameraSampler::block_rays`
+/// computes it once per eye sample rather than once per lens point (the pinhole
+/// direction and the focus scale, four divisions and a square root per lane, are
+/// most of the lane work).
+#[inline(always)]
+pub fn focus_points<L: Lanes>(frame: &CameraFrame, lens_frame: &LensFrame, px: L, py: L) -> [L; 3] {
+    debug_assert!(frame.ortho_half_height.is_none(), "perspective frames only");
+    let (w, h) = (L::splat(frame.width), L::splat(frame.height));
+    let (one, two) = (L::splat(1.0), L::splat(2.0));
+    let right = splat3::<L>(frame.right);
+    let up = splat3::<L>(frame.up);
+    let forward = splat3::<L>(frame.forward);
+    let th = L::splat(frame.tan_half);
+    let sx = (two * px / w - one) * th * w / h;
+    let sy = (one - two * py / h) * th;
+    let dir = normalize([0, 1, 2].map(|a| forward[a] + sx * right[a] + sy * up[a]));
+    focus_point(frame, lens_frame, splat3::<L>(frame.eye), dir)
+}
+
+/// The thin-lens camera rays of a perspective frame from their focus points
+/// ([`focus_points`]), aperture points `lens` (on the unit aperture) and shutter
+/// times: lane `i` equals [`camera_rays`] of the image point whose focus point is
+/// `focus[i]`, with `lens[i]` and `time[i]`, bit for bit (the same operations on the
+/// same values).
+#[inline(always)]
+pub fn lens_rays<L: Lanes>(
+    frame: &CameraFrame,
+    lens_frame: &LensFrame,
+    focus: [L; 3],
+    lens: (L, L),
+    time: L,
+) -> RayLanes<L> {
+    let (origin, dir) = through_lens(frame, lens_frame, splat3::<L>(frame.eye), focus, lens);
+    RayLanes {
+        origin: moved_eye(lens_frame, origin, time),
+        dir,
+        time,
+    }
 }
 
 /// The pinhole part of [`camera_rays`] from terms computed once per image column and
@@ -189,6 +272,13 @@ mod tests {
             let lanes = camera_rays(&frame, &lf, L::load(&a[0]), L::load(&a[1]), lens, time);
             let mut got = Vec::new();
             lanes.append(L::WIDTH, &mut got);
+            // Perspective with a lens: also through the focus points, the same bits.
+            let mut split = Vec::new();
+            if let (Some(lens), None) = (lens, frame.ortho_half_height) {
+                let focus = focus_points(&frame, &lf, L::load(&a[0]), L::load(&a[1]));
+                lens_rays(&frame, &lf, focus, lens, time).append(L::WIDTH, &mut split);
+                assert_eq!(split.len(), L::WIDTH);
+            }
             for (l, g) in got.iter().enumerate() {
                 let lp = lens.map(|_| Vec2::new(a[2][l], a[3][l]));
                 let want = lf.ray(&frame, frame.ray(a[0][l], a[1][l]), lp, lf.time(a[4][l]));
@@ -206,6 +296,21 @@ mod tests {
                 );
                 assert_eq!(g.time.to_bits(), want.time.to_bits());
                 assert_eq!((g.tmin, g.tmax), (want.tmin, want.tmax));
+                if let Some(s) = split.get(l) {
+                    let bits = |r: &Ray| {
+                        [
+                            r.origin.to_array(),
+                            r.dir.to_array(),
+                            [r.tmin, r.tmax, r.time],
+                        ]
+                        .map(|a| a.map(f32::to_bits))
+                    };
+                    assert_eq!(
+                        bits(s),
+                        bits(&want),
+                        "lane {l} (focus points): {s:?} vs {want:?}"
+                    );
+                }
             }
         }
     }
@@ -279,7 +384,11 @@ mod tests {
             eye1: Some(Vec3::new(0.5, 1.5, 4.0)),
             ..Default::default()
         };
-        for e in [CameraEffects::default(), lens, motion, ortho] {
+        let ortho_lens = CameraEffects {
+            ortho_height: Some(2.5),
+            ..motion
+        };
+        for e in [CameraEffects::default(), lens, motion, ortho, ortho_lens] {
             check::<F4>(e);
             check::<F16>(e);
         }
