@@ -37,7 +37,7 @@ use super::sampling::{
     Dimension, PixelRng, decorrelate, decorrelate_pairs, fill_1d, fill_2d, fill_2d_split,
 };
 use crate::geometry::Ray;
-use crate::scene::CameraFrame;
+use crate::scene::{CameraFrame, LensFrame};
 use crate::simd::aperture::concentric_disk;
 use crate::simd::camera::{
     RayLanes, camera_rays, column_term, focus_points, lens_rays, pinhole_rays, row_term,
@@ -73,6 +73,36 @@ pub(crate) struct CameraStaging {
     polygon: PolygonAperture,
     /// Pinhole direction terms per image column and row (one-offset plans).
     terms: PinholeTerms,
+}
+
+impl CameraStaging {
+    /// The staged lens points of the packet starting at ray `start`, mapped to the unit
+    /// disk lane by lane when `disk` (round apertures).
+    fn lens_lanes(&self, start: usize, disk: bool) -> (Packet, Packet) {
+        let end = start + PACKET_WIDTH;
+        let (u, v) = (
+            Packet::load(&self.lx[start..end]),
+            Packet::load(&self.ly[start..end]),
+        );
+        if disk { concentric_disk(u, v) } else { (u, v) }
+    }
+
+    /// The shutter times of the packet starting at ray `start`: the staged draws
+    /// mapped into the shutter interval `with_time`, else `closed` (the shutter's open
+    /// time in every lane).
+    fn time_lanes(
+        &self,
+        lens: &LensFrame,
+        start: usize,
+        with_time: bool,
+        closed: Packet,
+    ) -> Packet {
+        if with_time {
+            shutter_times(lens, Packet::load(&self.tu[start..start + PACKET_WIDTH]))
+        } else {
+            closed
+        }
+    }
 }
 
 /// The column and row terms of the pinhole direction
@@ -316,20 +346,8 @@ impl CameraSampler {
             } else {
                 [0, 1, 2].map(|a| Packet::load(&st.ray_focus[a][start..end]))
             };
-            let (u, v) = (
-                Packet::load(&st.lx[start..end]),
-                Packet::load(&st.ly[start..end]),
-            );
-            let lens = if disk_lanes {
-                concentric_disk(u, v)
-            } else {
-                (u, v)
-            };
-            let time = if with_time {
-                shutter_times(&self.lens, Packet::load(&st.tu[start..end]))
-            } else {
-                closed
-            };
+            let lens = st.lens_lanes(start, disk_lanes);
+            let time = st.time_lanes(&self.lens, start, with_time, closed);
             lens_rays(&self.frame, &self.lens, focus, lens, time)
                 .append((n - start).min(PACKET_WIDTH), rays);
         }
@@ -518,22 +536,8 @@ impl CameraSampler {
             let end = start + PACKET_WIDTH;
             let px = Packet::load(&st.px[start..end]);
             let py = Packet::load(&st.py[start..end]);
-            let lens = with_lens.then(|| {
-                let (u, v) = (
-                    Packet::load(&st.lx[start..end]),
-                    Packet::load(&st.ly[start..end]),
-                );
-                if disk_lanes {
-                    concentric_disk(u, v)
-                } else {
-                    (u, v)
-                }
-            });
-            let time = if with_time {
-                shutter_times(&self.lens, Packet::load(&st.tu[start..end]))
-            } else {
-                closed
-            };
+            let lens = with_lens.then(|| st.lens_lanes(start, disk_lanes));
+            let time = st.time_lanes(&self.lens, start, with_time, closed);
             camera_rays(&self.frame, &self.lens, px, py, lens, time)
                 .append((n - start).min(PACKET_WIDTH), rays);
         }

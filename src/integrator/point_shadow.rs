@@ -42,7 +42,9 @@
 //! share (no quiet machine in this session).
 
 use super::shadow::ShadowFilter;
-use super::tiny_shadow::{GlassSet, LaneSettled, settle_spheres, tiny_shadow_scene};
+use super::tiny_shadow::{
+    GlassSet, LaneSettled, listed_near_bits, near_bits, settle_spheres, tiny_shadow_scene,
+};
 use crate::accel::{SceneAccel, TINY_MAX_PRIMITIVES};
 use crate::simd::direct_light::ShadowLanes;
 use crate::simd::kernels::{RayLanes, sphere_lanes};
@@ -175,19 +177,9 @@ impl PointOccluders {
         // images byte-identical).
         let ball = light.map(|l| (l, origin_ball(&s.origin, rest)));
         let near = |&(c, r): &(Vec3, f32)| !ball.is_some_and(|(l, b)| sphere_clear(l, b, c, r));
-        let all = self
-            .spheres
-            .iter()
-            .enumerate()
-            .fold(0u32, |b, (k, s)| b | (near(s) as u32) << (k & 31));
+        let all = near_bits(&self.spheres, &near);
         let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
-            list.iter()
-                .zip(index)
-                .enumerate()
-                .fold(0u32, |b, (k, (s, i))| {
-                    let n = i.map_or_else(|| near(s), |i| all >> (i & 31) & 1 == 1);
-                    b | (n as u32) << (k & 31)
-                })
+            listed_near_bits(list, index, all, &near)
         };
         let mut sph = 0u32;
         for (k, &(center, radius)) in self.spheres.iter().enumerate() {

@@ -158,6 +158,34 @@ pub struct LaneOccluders {
     glass: Option<GlassSet>,
 }
 
+/// Bit `k` for sphere `k` of `spheres` where `near` holds (the first 32 spheres; a tiny
+/// scene has fewer).
+pub(crate) fn near_bits(spheres: &[(Vec3, f32)], near: impl Fn(&(Vec3, f32)) -> bool) -> u32 {
+    spheres
+        .iter()
+        .enumerate()
+        .fold(0u32, |b, (k, s)| b | (near(s) as u32) << (k & 31))
+}
+
+/// Bit `k` for sphere `k` of `list` (a glass set's opaque or glass list) where `near`
+/// holds; a listed sphere that is one of the scene's (`index[k] = Some(i)`) takes bit
+/// `i` of `all`, the scene's [`near_bits`] for the same `near`, so each sphere is tested
+/// once.
+pub(crate) fn listed_near_bits(
+    list: &[(Vec3, f32)],
+    index: &[Option<usize>],
+    all: u32,
+    near: impl Fn(&(Vec3, f32)) -> bool,
+) -> u32 {
+    list.iter()
+        .zip(index)
+        .enumerate()
+        .fold(0u32, |b, (k, (s, i))| {
+            let n = i.map_or_else(|| near(s), |i| all >> (i & 31) & 1 == 1);
+            b | (n as u32) << (k & 31)
+        })
+}
+
 /// Which spheres a group of segments may meet ([`LaneOccluders::sphere_bits`]): bit
 /// `k` for sphere `k` of the scene's list, of the opaque and of the glass list.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -468,20 +496,10 @@ impl LaneOccluders {
     /// the glass list.
     pub fn sphere_bits(&self, cull: Option<&QuadCull>) -> SphereBits {
         let near = |&(c, r): &(Vec3, f32)| !cull.is_some_and(|cull| cull.clear(c, r));
-        let all = self
-            .spheres
-            .iter()
-            .enumerate()
-            .fold(0u32, |b, (k, s)| b | (near(s) as u32) << (k & 31));
+        let all = near_bits(&self.spheres, &near);
         // A listed sphere that is one of `spheres` takes its bit (the same call).
         let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
-            list.iter()
-                .zip(index)
-                .enumerate()
-                .fold(0u32, |b, (k, (s, i))| {
-                    let n = i.map_or_else(|| near(s), |i| all >> (i & 31) & 1 == 1);
-                    b | (n as u32) << (k & 31)
-                })
+            listed_near_bits(list, index, all, &near)
         };
         let (oi, gi) = &self.glass_index;
         SphereBits {
