@@ -177,9 +177,9 @@ impl PointOccluders {
         // images byte-identical).
         let ball = light.map(|l| (l, origin_ball(&s.origin, rest)));
         let near = |&(c, r): &(Vec3, f32)| !ball.is_some_and(|(l, b)| sphere_clear(l, b, c, r));
-        let all = near_bits(&self.spheres, &near);
+        let all = near_bits(&self.spheres, near);
         let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
-            listed_near_bits(list, index, all, &near)
+            listed_near_bits(list, index, all, near)
         };
         let mut sph = 0u32;
         for (k, &(center, radius)) in self.spheres.iter().enumerate() {

@@ -496,10 +496,10 @@ impl LaneOccluders {
     /// the glass list.
     pub fn sphere_bits(&self, cull: Option<&QuadCull>) -> SphereBits {
         let near = |&(c, r): &(Vec3, f32)| !cull.is_some_and(|cull| cull.clear(c, r));
-        let all = near_bits(&self.spheres, &near);
+        let all = near_bits(&self.spheres, near);
         // A listed sphere that is one of `spheres` takes its bit (the same call).
         let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
-            listed_near_bits(list, index, all, &near)
+            listed_near_bits(list, index, all, near)
         };
         let (oi, gi) = &self.glass_index;
         SphereBits {
