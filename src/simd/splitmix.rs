@@ -114,7 +114,8 @@ mod tests {
                 rng.next_f32();
             }
             if case % 97 == 0 {
-                rng = PixelRng::from_state(u64::MAX - (next() % 64) * GAMMA);
+                rng =
+                    PixelRng::from_state(u64::MAX.wrapping_sub((next() % 64).wrapping_mul(GAMMA)));
             }
             let state = rng.state();
             let (mut u, mut v) = ([0.0f32; 16], [0.0f32; 16]);
