@@ -55,9 +55,12 @@ pub fn unit_pairs16_scalar(state: u64, u: &mut [f32; 16], v: &mut [f32; 16]) {
 
 /// `(m + 1) γ` for the draws of the first (`ODD[p] = (2p + 1) γ`) and second
 /// coordinates (`EVEN[p] = (2p + 2) γ`).
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
 const ODD: [u64; 16] = offsets(1);
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
 const EVEN: [u64; 16] = offsets(2);
 
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
 const fn offsets(first: u64) -> [u64; 16] {
     let mut out = [0u64; 16];
     let mut p = 0;
