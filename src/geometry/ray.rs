@@ -13,6 +13,18 @@ pub struct Ray {
 }
 
 impl Ray {
+    /// Every field's bits (origin, direction, then `tmin`, `tmax`, `time`): what the
+    /// bit-for-bit tests compare.
+    #[cfg(test)]
+    pub(crate) fn bits(&self) -> [[u32; 3]; 3] {
+        [
+            self.origin.to_array(),
+            self.dir.to_array(),
+            [self.tmin, self.tmax, self.time],
+        ]
+        .map(|a| a.map(f32::to_bits))
+    }
+
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         Ray {
             origin,

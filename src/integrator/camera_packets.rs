@@ -667,14 +667,7 @@ mod tests {
                             &mut rays,
                             &mut drawn,
                         );
-                        let bits = |r: &Ray| {
-                            [
-                                r.origin.to_array(),
-                                r.dir.to_array(),
-                                [r.tmin, r.tmax, r.time],
-                            ]
-                            .map(|a| a.map(f32::to_bits))
-                        };
+                        let bits = Ray::bits;
                         assert_eq!(rays.len(), want_rays.len());
                         for (i, (g, w)) in rays.iter().zip(&want_rays).enumerate() {
                             assert_eq!(
@@ -781,14 +774,7 @@ mod tests {
                         );
                         assert_eq!(rays.len(), want_rays.len());
                         for (i, (g, r)) in rays.iter().zip(&want_rays).enumerate() {
-                            let bits = |r: &Ray| {
-                                [
-                                    r.origin.to_array(),
-                                    r.dir.to_array(),
-                                    [r.tmin, r.tmax, r.time],
-                                ]
-                                .map(|a| a.map(f32::to_bits))
-                            };
+                            let bits = Ray::bits;
                             assert_eq!(
                                 bits(g),
                                 bits(r),

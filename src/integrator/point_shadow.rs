@@ -43,7 +43,8 @@
 
 use super::shadow::ShadowFilter;
 use super::tiny_shadow::{
-    GlassSet, LaneSettled, listed_near_bits, near_bits, settle_spheres, tiny_shadow_scene,
+    GlassSet, LaneSettled, glass_index, listed_near_bits, near_bits, settle_spheres,
+    tiny_shadow_scene,
 };
 use crate::accel::{SceneAccel, TINY_MAX_PRIMITIVES};
 use crate::simd::direct_light::ShadowLanes;
@@ -81,16 +82,7 @@ impl PointOccluders {
     pub fn new(accel: &SceneAccel, filter: Option<&ShadowFilter>) -> Option<PointOccluders> {
         let (tiny, glass) = tiny_shadow_scene(accel, filter)?;
         let spheres = tiny.spheres().to_vec();
-        let index = |list: &[(Vec3, f32)]| {
-            list.iter()
-                .map(|s| spheres.iter().position(|a| a.0 == s.0 && a.1 == s.1))
-                .collect()
-        };
-        let glass_index = glass
-            .as_ref()
-            .map_or((Vec::new(), Vec::new()), |g: &GlassSet| {
-                (index(&g.0), index(&g.1))
-            });
+        let glass_index = glass_index(&spheres, glass.as_ref());
         let planes: Vec<Option<AxisPlane>> = tiny.triangles().iter().map(AxisPlane::of).collect();
         let twins = (0..planes.len())
             .map(|i| planes[i].and_then(|p| (0..i).find(|&j| planes[j] == Some(p))))

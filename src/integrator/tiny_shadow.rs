@@ -158,6 +158,21 @@ pub struct LaneOccluders {
     glass: Option<GlassSet>,
 }
 
+/// Per sphere of the glass set's opaque and glass lists, its index in `spheres` (the
+/// lists are parts of it), so that each sphere is tested once per group; empty lists
+/// without a glass set.
+pub(crate) fn glass_index(
+    spheres: &[(Vec3, f32)],
+    glass: Option<&GlassSet>,
+) -> (Vec<Option<usize>>, Vec<Option<usize>>) {
+    let index = |list: &[(Vec3, f32)]| {
+        list.iter()
+            .map(|s| spheres.iter().position(|a| a.0 == s.0 && a.1 == s.1))
+            .collect()
+    };
+    glass.map_or((Vec::new(), Vec::new()), |g| (index(&g.0), index(&g.1)))
+}
+
 /// Bit `k` for sphere `k` of `spheres` where `near` holds (the first 32 spheres; a tiny
 /// scene has fewer).
 pub(crate) fn near_bits(spheres: &[(Vec3, f32)], near: impl Fn(&(Vec3, f32)) -> bool) -> u32 {
@@ -469,16 +484,7 @@ impl LaneOccluders {
             .map(|i| (0..i).find(|&j| planes[j].same_plane(&planes[i])))
             .collect();
         let spheres = tiny.spheres().to_vec();
-        let index = |list: &[(Vec3, f32)]| {
-            list.iter()
-                .map(|s| spheres.iter().position(|a| a.0 == s.0 && a.1 == s.1))
-                .collect()
-        };
-        let glass_index = glass
-            .as_ref()
-            .map_or((Vec::new(), Vec::new()), |g: &GlassSet| {
-                (index(&g.0), index(&g.1))
-            });
+        let glass_index = glass_index(&spheres, glass.as_ref());
         static NEXT: AtomicU64 = AtomicU64::new(1);
         Some(LaneOccluders {
             id: NEXT.fetch_add(1, Ordering::Relaxed),

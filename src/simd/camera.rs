@@ -297,14 +297,7 @@ mod tests {
                 assert_eq!(g.time.to_bits(), want.time.to_bits());
                 assert_eq!((g.tmin, g.tmax), (want.tmin, want.tmax));
                 if let Some(s) = split.get(l) {
-                    let bits = |r: &Ray| {
-                        [
-                            r.origin.to_array(),
-                            r.dir.to_array(),
-                            [r.tmin, r.tmax, r.time],
-                        ]
-                        .map(|a| a.map(f32::to_bits))
-                    };
+                    let bits = Ray::bits;
                     assert_eq!(
                         bits(s),
                         bits(&want),

@@ -624,6 +624,12 @@ mod tests {
         best
     }
 
+    /// The floor quad `y = 0`, `|x|, |z| <= h`, as two triangles sharing a diagonal.
+    fn floor_quad(h: f32) -> [[Vec3; 3]; 2] {
+        let [a, b, c, d] = [(-h, -h), (-h, h), (h, h), (h, -h)].map(|(x, z)| Vec3::new(x, 0.0, z));
+        [[a, b, c], [a, c, d]]
+    }
+
     /// [`TinyGroup::closest`] returns, for every lane of its mask, the scalar loop's
     /// answer bit for bit (t, u, v, primitive; no hit where the loop finds none), and
     /// for every other lane no hit, `t` the interval end, `u = v = 0` and no primitive:
@@ -635,18 +641,7 @@ mod tests {
     /// masks of every shape (one half empty, gaps, single lanes, all sixteen).
     #[test]
     fn closest_is_the_scalar_loop_for_every_lane_mask() {
-        let floor = [
-            [
-                Vec3::new(-4.0, 0.0, -4.0),
-                Vec3::new(-4.0, 0.0, 4.0),
-                Vec3::new(4.0, 0.0, 4.0),
-            ],
-            [
-                Vec3::new(-4.0, 0.0, -4.0),
-                Vec3::new(4.0, 0.0, 4.0),
-                Vec3::new(4.0, 0.0, -4.0),
-            ],
-        ];
+        let floor = floor_quad(4.0);
         let triangles = [
             floor[0],
             floor[1],
@@ -776,18 +771,7 @@ mod tests {
     fn closest_skips_the_floor_only_where_the_scalar_loop_misses_it() {
         use crate::geometry::offset_ray_origin;
         use crate::scene::Camera;
-        let floor = [
-            [
-                Vec3::new(-1000.0, 0.0, -1000.0),
-                Vec3::new(-1000.0, 0.0, 1000.0),
-                Vec3::new(1000.0, 0.0, 1000.0),
-            ],
-            [
-                Vec3::new(-1000.0, 0.0, -1000.0),
-                Vec3::new(1000.0, 0.0, 1000.0),
-                Vec3::new(1000.0, 0.0, -1000.0),
-            ],
-        ];
+        let floor = floor_quad(1000.0);
         let spheres = [
             (Vec3::new(1.1, 1.3, -1.4), 1.3),
             (Vec3::new(-0.9, 1.0, 1.0), 1.0),
