@@ -50,7 +50,7 @@ use crate::accel::{SceneAccel, TINY_MAX_PRIMITIVES};
 use crate::simd::direct_light::ShadowLanes;
 use crate::simd::kernels::{RayLanes, sphere_lanes};
 use crate::simd::lanes3::V3;
-use crate::simd::shadow_cull::{AxisPlane, origin_ball, sphere_clear};
+use crate::simd::shadow_cull::{AxisPlane, ClearOf, origin_ball};
 use crate::simd::tiny::{TinyGroup, lane_shear_keys};
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
@@ -167,8 +167,11 @@ impl PointOccluders {
         // loaded ~12 on 2 cores): `shade_group_lanes` + this function's closure +
         // `sphere_clear` 1632 -> 1151 (the two changes and `direct_light`'s together;
         // images byte-identical).
-        let ball = light.map(|l| (l, origin_ball(&s.origin, rest)));
-        let near = |&(c, r): &(Vec3, f32)| !ball.is_some_and(|(l, b)| sphere_clear(l, b, c, r));
+        //
+        // The terms shared by the spheres are computed once per group and light
+        // (`ClearOf`, the same answers as `sphere_clear` per sphere).
+        let clear_of = light.map(|l| ClearOf::new(l, origin_ball(&s.origin, rest)));
+        let near = |&(c, r): &(Vec3, f32)| !clear_of.as_ref().is_some_and(|k| k.clear(c, r));
         let all = near_bits(&self.spheres, near);
         let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
             listed_near_bits(list, index, all, near)
@@ -233,6 +236,7 @@ mod tests {
     use crate::integrator::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
     use crate::integrator::shader::{ChildKind, Emitted, Shader};
     use crate::scene::{Camera, Light, Material, Scene, SceneBuilder};
+    use crate::simd::shadow_cull::sphere_clear;
     use crate::stats::{EffectSamplesDrawn, RayCounts};
 
     /// A tiny scene of the Whitted rows' kind: an axis-aligned floor quad, a tilted
