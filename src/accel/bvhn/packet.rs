@@ -135,6 +135,15 @@ where
                 let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
+                // Tried, no win (issue 12, pkt17): with a shared origin, the node's six
+                // near/far planes moved to it once per node with N-lane subtractions
+                // (shared by the whole-packet test, which computes those differences
+                // anyway) and broadcast from a stack array into each child's test,
+                // instead of one scalar subtraction per plane and child. CPU time of 20
+                // primary passes (`perf stat -e task-clock examples/stream_profile
+                // bunny.obj bvh8-packet primary 21`, minus the same with 1; AVX-512, load
+                // 11-13, three interleaved rounds): 549/544/552 ms before, 557/564/555
+                // after (+1.5 %), same checksums.
                 let mut cand = bounds.candidates(&planes, children);
                 while cand != 0 {
                     let c = cand.trailing_zeros() as usize;
@@ -175,6 +184,13 @@ where
                 }
             } else if let Leaves::Triangles(groups) = &self.leaves {
                 for g in &groups[leaf_range(cur)] {
+                    // Tried, slower (issue 12, pkt17): with a shared origin, the group's
+                    // corners moved to it once per group with four-lane subtractions
+                    // (nine, into a stack array, where some triangle is a candidate) and
+                    // broadcast into each triangle's packet test, instead of nine scalar
+                    // subtractions per triangle; with the node change above, the same
+                    // measurement gave 629/631/622 ms against 549/544/552 (+14 %; the
+                    // node change alone +1.5 %), same checksums.
                     let cand = bounds.triangle_candidates(g);
                     for lane in 0..4 {
                         if g.ids[lane] == u32::MAX || cand >> lane & 1 == 0 {
