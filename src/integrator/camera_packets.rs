@@ -830,4 +830,84 @@ mod tests {
         }
         assert_eq!(cases, 12);
     }
+
+    /// One staging reused by cameras of different eyes and shutter open times (as a
+    /// worker's is from tile to tile): the kept store of rays from the eye
+    /// ([`UniformRays`]) is remade for each, so the rays stay the scalar oracle's bit
+    /// for bit, on the 4x4-block path (one offset) and on the lane loop (four grid
+    /// offsets per pixel), and the store kept is the last camera's.
+    #[test]
+    fn a_reused_staging_follows_the_camera() {
+        let (w, h) = (16u32, 8u32);
+        let blocks: Vec<(u32, u32)> = (0..h / 4)
+            .flat_map(|by| (0..w / 4).map(move |bx| (4 * bx, 4 * by)))
+            .collect();
+        let pixels: Vec<(u32, u32, u64)> = blocks
+            .iter()
+            .flat_map(|&(bx, by)| {
+                (0..16u32).map(move |i| {
+                    let (x, y) = (bx + i % 4, by + i / 4);
+                    (x, y, (y * w + x) as u64)
+                })
+            })
+            .collect();
+        let (a, b) = (Vec3::new(0.3, 1.7, 5.2), Vec3::new(-1.0, 0.5, 3.0));
+        let mut st = CameraStaging::default();
+        let mut cases = 0;
+        for (eye, open) in [(a, 0.0), (b, 0.0), (b, 0.25), (a, 0.0)] {
+            for (sampler, n) in [(SamplerKind::Jittered, 1), (SamplerKind::Grid, 4)] {
+                let cam = Camera {
+                    eye,
+                    target: Vec3::new(-0.2, 0.4, 0.1),
+                    up: Vec3::Y,
+                    vfov_deg: 41.0,
+                };
+                let effects = CameraEffects {
+                    shutter: [open, open + 0.5],
+                    ..Default::default()
+                };
+                let camera = CameraSampler {
+                    frame: cam.frame(w, h).with_effects(&effects),
+                    lens: LensFrame::new(&cam, &effects),
+                    plan: SamplePlan {
+                        eye: n,
+                        lens: 0,
+                        time: 0,
+                        shadow: 1,
+                        glossy: 1,
+                        environment: 0,
+                        sampler,
+                        filter: FilterKind::Box,
+                        eye_begin: 0,
+                        eye_end: n,
+                    },
+                };
+                assert!(camera.plain_pinhole());
+                let mut want = Vec::new();
+                let mut drawn = EffectSamplesDrawn::default();
+                let mut s = PixelSamples::default();
+                for &(x, y, index) in &pixels {
+                    camera.pixel_samples(5, index, x, y, &mut s, &mut drawn);
+                    want.extend_from_slice(&s.rays);
+                }
+                let (mut rays, mut off) = (Vec::new(), Vec::new());
+                camera.block_rays(
+                    5,
+                    (&pixels, &blocks),
+                    &mut st,
+                    &mut off,
+                    &mut rays,
+                    &mut drawn,
+                );
+                assert_eq!(rays.len(), want.len());
+                for (i, (g, r)) in rays.iter().zip(&want).enumerate() {
+                    assert_eq!(g.bits(), r.bits(), "{sampler} eye {eye} ray {i}");
+                }
+                let key = [eye.x, eye.y, eye.z, open].map(f32::to_bits);
+                assert_eq!(st.uniform.as_ref().map(|u| u.0), Some(key));
+                cases += 1;
+            }
+        }
+        assert_eq!(cases, 8);
+    }
 }
