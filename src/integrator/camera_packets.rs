@@ -43,6 +43,7 @@ use crate::simd::camera::{
     RayLanes, camera_rays, column_term, focus_points, lens_rays, pinhole_rays, row_term,
     shutter_times,
 };
+use crate::simd::ray_store::UniformRays;
 use crate::simd::{Lanes, PACKET_WIDTH, Packet};
 use crate::stats::EffectSamplesDrawn;
 
@@ -73,6 +74,9 @@ pub(crate) struct CameraStaging {
     polygon: PolygonAperture,
     /// Pinhole direction terms per image column and row (one-offset plans).
     terms: PinholeTerms,
+    /// The store of rays from the eye at the shutter's open time (plain pinhole
+    /// frames), with the bits of the eye and the time it was made for.
+    uniform: Option<([u32; 4], UniformRays)>,
 }
 
 impl CameraStaging {
@@ -407,6 +411,7 @@ impl CameraSampler {
                 rays.reserve(pixels.len());
                 let closed = Packet::splat(self.lens.shutter[0]);
                 if self.plain_pinhole() && blocks_match(pixels, blocks) {
+                    let store = uniform_rays(&mut st.uniform, self.frame.eye, self.lens.shutter[0]);
                     let terms = st.terms.update(&self.frame, (ox, oy));
                     for (k, &b) in blocks.iter().enumerate() {
                         let Some(lanes) = terms.block(self.frame.eye, b, closed) else {
@@ -416,7 +421,10 @@ impl CameraSampler {
                             self.point_rays(rest, (ox, oy), closed, rays);
                             return;
                         };
-                        lanes.append(PACKET_WIDTH, rays);
+                        // The eye and the open time in every lane: only the
+                        // directions differ ([`UniformRays`]).
+                        let d = lanes.dir.map(|l| l.to_array());
+                        store.append([&d[0], &d[1], &d[2]], PACKET_WIDTH, rays);
                     }
                     return;
                 }
@@ -532,6 +540,20 @@ impl CameraSampler {
         }
         rays.reserve(n);
         let closed = Packet::splat(self.lens.shutter[0]);
+        if !with_time && self.plain_pinhole() {
+            // Every ray leaves the eye at the open time (several eye samples per
+            // pixel, or a plan that draws them): only the directions are stored.
+            let store = uniform_rays(&mut st.uniform, self.frame.eye, self.lens.shutter[0]);
+            for start in (0..n).step_by(PACKET_WIDTH) {
+                let end = start + PACKET_WIDTH;
+                let px = Packet::load(&st.px[start..end]);
+                let py = Packet::load(&st.py[start..end]);
+                let lanes = camera_rays(&self.frame, &self.lens, px, py, None, closed);
+                let d = lanes.dir.map(|l| l.to_array());
+                store.append([&d[0], &d[1], &d[2]], (n - start).min(PACKET_WIDTH), rays);
+            }
+            return;
+        }
         for start in (0..n).step_by(PACKET_WIDTH) {
             let end = start + PACKET_WIDTH;
             let px = Packet::load(&st.px[start..end]);
@@ -542,6 +564,23 @@ impl CameraSampler {
                 .append((n - start).min(PACKET_WIDTH), rays);
         }
     }
+}
+
+/// The store of rays leaving `eye` at `time` kept in `slot` ([`UniformRays`], made
+/// once per worker and camera: its windows take longer to make than a tile's rays to
+/// store), made if the one kept is not for those (compared by bits).
+fn uniform_rays(
+    slot: &mut Option<([u32; 4], UniformRays)>,
+    eye: glam::Vec3,
+    time: f32,
+) -> &UniformRays {
+    let key = [eye.x, eye.y, eye.z, time].map(f32::to_bits);
+    if slot.as_ref().is_none_or(|(k, _)| *k != key) {
+        *slot = None;
+    }
+    &slot
+        .get_or_insert_with(|| (key, UniformRays::new(eye, time)))
+        .1
 }
 
 /// Whether `pixels` are the 4x4 blocks `blocks` in order (see
@@ -790,5 +829,85 @@ mod tests {
             }
         }
         assert_eq!(cases, 12);
+    }
+
+    /// One staging reused by cameras of different eyes and shutter open times (as a
+    /// worker's is from tile to tile): the kept store of rays from the eye
+    /// ([`UniformRays`]) is remade for each, so the rays stay the scalar oracle's bit
+    /// for bit, on the 4x4-block path (one offset) and on the lane loop (four grid
+    /// offsets per pixel), and the store kept is the last camera's.
+    #[test]
+    fn a_reused_staging_follows_the_camera() {
+        let (w, h) = (16u32, 8u32);
+        let blocks: Vec<(u32, u32)> = (0..h / 4)
+            .flat_map(|by| (0..w / 4).map(move |bx| (4 * bx, 4 * by)))
+            .collect();
+        let pixels: Vec<(u32, u32, u64)> = blocks
+            .iter()
+            .flat_map(|&(bx, by)| {
+                (0..16u32).map(move |i| {
+                    let (x, y) = (bx + i % 4, by + i / 4);
+                    (x, y, (y * w + x) as u64)
+                })
+            })
+            .collect();
+        let (a, b) = (Vec3::new(0.3, 1.7, 5.2), Vec3::new(-1.0, 0.5, 3.0));
+        let mut st = CameraStaging::default();
+        let mut cases = 0;
+        for (eye, open) in [(a, 0.0), (b, 0.0), (b, 0.25), (a, 0.0)] {
+            for (sampler, n) in [(SamplerKind::Jittered, 1), (SamplerKind::Grid, 4)] {
+                let cam = Camera {
+                    eye,
+                    target: Vec3::new(-0.2, 0.4, 0.1),
+                    up: Vec3::Y,
+                    vfov_deg: 41.0,
+                };
+                let effects = CameraEffects {
+                    shutter: [open, open + 0.5],
+                    ..Default::default()
+                };
+                let camera = CameraSampler {
+                    frame: cam.frame(w, h).with_effects(&effects),
+                    lens: LensFrame::new(&cam, &effects),
+                    plan: SamplePlan {
+                        eye: n,
+                        lens: 0,
+                        time: 0,
+                        shadow: 1,
+                        glossy: 1,
+                        environment: 0,
+                        sampler,
+                        filter: FilterKind::Box,
+                        eye_begin: 0,
+                        eye_end: n,
+                    },
+                };
+                assert!(camera.plain_pinhole());
+                let mut want = Vec::new();
+                let mut drawn = EffectSamplesDrawn::default();
+                let mut s = PixelSamples::default();
+                for &(x, y, index) in &pixels {
+                    camera.pixel_samples(5, index, x, y, &mut s, &mut drawn);
+                    want.extend_from_slice(&s.rays);
+                }
+                let (mut rays, mut off) = (Vec::new(), Vec::new());
+                camera.block_rays(
+                    5,
+                    (&pixels, &blocks),
+                    &mut st,
+                    &mut off,
+                    &mut rays,
+                    &mut drawn,
+                );
+                assert_eq!(rays.len(), want.len());
+                for (i, (g, r)) in rays.iter().zip(&want).enumerate() {
+                    assert_eq!(g.bits(), r.bits(), "{sampler} eye {eye} ray {i}");
+                }
+                let key = [eye.x, eye.y, eye.z, open].map(f32::to_bits);
+                assert_eq!(st.uniform.as_ref().map(|u| u.0), Some(key));
+                cases += 1;
+            }
+        }
+        assert_eq!(cases, 8);
     }
 }

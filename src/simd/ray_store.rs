@@ -49,6 +49,66 @@ pub fn append_rays(o: [&[f32]; 3], d: [&[f32]; 3], t: &[f32], n: usize, out: &mu
     append_plain(o, d, t, n, out);
 }
 
+/// Appends rays that share one origin and one time (pinhole camera rays without eye
+/// motion: only the direction differs from ray to ray), as [`append_rays`] with every
+/// origin lane `origin` and every time lane `time`.
+///
+/// With AVX-512 sixteen such rays are 144 floats, nine 64-byte stores: each store is
+/// the constant part of its window of the ray array (origin, `tmin`, `tmax`, time,
+/// made once in [`UniformRays::new`]) with the directions merged in by two masked
+/// permutes, against 24 shuffles, 16 stores and 16 scalar time stores for the
+/// transposes of [`append_rays`]. Without AVX-512 the transposed path.
+pub struct UniformRays {
+    origin: [[f32; 16]; 3],
+    time: [f32; 16],
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    windows: avx512::Windows,
+}
+
+impl UniformRays {
+    /// The store of rays from `origin` at `time`.
+    pub fn new(origin: glam::Vec3, time: f32) -> Self {
+        UniformRays {
+            origin: origin.to_array().map(|c| [c; 16]),
+            time: [time; 16],
+            #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+            windows: avx512::Windows::new(origin, time),
+        }
+    }
+
+    /// Appends rays `0..n` (at most 16) with directions `d` (each of the three at least
+    /// `n` long) to `out`: ray `i` leaves the origin along `(d[0][i], d[1][i], d[2][i])`.
+    #[inline]
+    pub fn append(&self, d: [&[f32]; 3], n: usize, out: &mut Vec<Ray>) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+        if let (Ok(x), Ok(y), Ok(z)) = (
+            <&[f32; 16]>::try_from(d[0]),
+            <&[f32; 16]>::try_from(d[1]),
+            <&[f32; 16]>::try_from(d[2]),
+        ) {
+            let n = n.min(16);
+            out.reserve(n);
+            // SAFETY: `reserve` made room for `n` more rays after `out.len()`; `store`
+            // writes exactly their `9 n` floats (masked stores past them), every byte
+            // of each ray (the layout is asserted above), before the length is raised
+            // over them; it reads the three 16-float arrays `x`, `y`, `z`.
+            unsafe {
+                let dst = out.as_mut_ptr().add(out.len()) as *mut f32;
+                self.windows.store([x, y, z], n, dst);
+                out.set_len(out.len() + n);
+            }
+            return;
+        }
+        let n = n.min(16);
+        let o = [
+            &self.origin[0][..],
+            &self.origin[1][..],
+            &self.origin[2][..],
+        ];
+        append_rays(o, d, &self.time, n, out);
+    }
+}
+
 /// The plain loop: the reference of the transposed path (and the path without AVX2).
 pub fn append_plain(o: [&[f32]; 3], d: [&[f32]; 3], t: &[f32], n: usize, out: &mut Vec<Ray>) {
     let (ox, oy, oz) = (&o[0][..n], &o[1][..n], &o[2][..n]);
@@ -135,6 +195,99 @@ pub(super) mod avx2 {
     }
 }
 
+/// The sixteen-ray stores of [`UniformRays`].
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+mod avx512 {
+    use std::arch::x86_64::*;
+
+    /// Float `p` of sixteen rays laid out one after the other (nine floats each) is
+    /// component `p % 9` of ray `p / 9`; window `k` is floats `16 k..16 k + 16`.
+    const fn component(k: usize, lane: usize) -> (usize, usize) {
+        let p = 16 * k + lane;
+        (p / 9, p % 9)
+    }
+
+    /// Per window: `base`, the constant floats (origin, `tmin`, `tmax`, time) with, in
+    /// the lanes of the directions' x and y, the two-source permute index of that
+    /// component of that ray (only its low five bits are read: lane `r` of x is index
+    /// `r`, of y `16 + r`); `xy`, the mask of those lanes; `zi` and `z`, the index and
+    /// mask of the direction's z.
+    pub(super) struct Windows {
+        base: [__m512; 9],
+        xy: [__mmask16; 9],
+        zi: [__m512i; 9],
+        z: [__mmask16; 9],
+    }
+
+    impl Windows {
+        pub(super) fn new(origin: glam::Vec3, time: f32) -> Self {
+            let mut base = [[0u32; 16]; 9];
+            let mut zi = [[0i32; 16]; 9];
+            let (mut xy, mut z) = ([0u16; 9], [0u16; 9]);
+            for k in 0..9 {
+                for lane in 0..16 {
+                    let (r, c) = component(k, lane);
+                    base[k][lane] = match c {
+                        0..=2 => origin[c].to_bits(),
+                        3 => r as u32,
+                        4 => 16 + r as u32,
+                        5 => {
+                            zi[k][lane] = r as i32;
+                            z[k] |= 1 << lane;
+                            0
+                        }
+                        6 => 0f32.to_bits(),
+                        7 => f32::INFINITY.to_bits(),
+                        _ => time.to_bits(),
+                    };
+                    if c == 3 || c == 4 {
+                        xy[k] |= 1 << lane;
+                    }
+                }
+            }
+            // SAFETY: unaligned loads of 16-element arrays of 4-byte values.
+            unsafe {
+                Windows {
+                    base: base.map(|b| _mm512_castsi512_ps(_mm512_loadu_si512(b.as_ptr().cast()))),
+                    xy,
+                    zi: zi.map(|i| _mm512_loadu_si512(i.as_ptr().cast())),
+                    z,
+                }
+            }
+        }
+
+        /// Writes rays `0..n` (`n <= 16`) from `dst` on, nine floats each, directions
+        /// from `d`.
+        ///
+        /// # Safety
+        /// `dst` must be valid for `9 n` floats.
+        #[inline(always)]
+        pub(super) unsafe fn store(&self, d: [&[f32; 16]; 3], n: usize, dst: *mut f32) {
+            unsafe {
+                let x = _mm512_loadu_ps(d[0].as_ptr());
+                let y = _mm512_loadu_ps(d[1].as_ptr());
+                let z = _mm512_loadu_ps(d[2].as_ptr());
+                let floats = 9 * n;
+                for k in 0..9 {
+                    // Lanes not in `xy` keep `base`'s bits (vpermi2ps writes the index
+                    // operand's lane where the mask is clear).
+                    let idx = _mm512_castps_si512(self.base[k]);
+                    let w = _mm512_mask2_permutex2var_ps(x, idx, self.xy[k], y);
+                    let w = _mm512_mask_permutexvar_ps(w, self.z[k], self.zi[k], z);
+                    let p = dst.add(16 * k);
+                    if floats >= 16 * (k + 1) {
+                        _mm512_storeu_ps(p, w);
+                    } else {
+                        let left = floats.saturating_sub(16 * k);
+                        let mask = ((1u32 << left) - 1) as __mmask16;
+                        _mm512_mask_storeu_ps(p, mask, w);
+                    }
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -178,6 +331,64 @@ mod tests {
                 assert_eq!(got.len(), 3 + n);
                 for (g, w) in got.iter().zip(&want) {
                     assert_eq!(bits(g), bits(w), "n {n}");
+                }
+            }
+        }
+    }
+
+    /// [`UniformRays`] gives the plain loop's rays with every origin lane the one
+    /// origin and every time lane the one time, bit for bit, for every count 0..=16
+    /// of rays appended after rays already in the vector, with NaN, signed zeros,
+    /// infinities and subnormals among the directions, the origin and the time; and
+    /// lanes past `n` are not written (the vector's spare room keeps its sentinel).
+    #[test]
+    fn uniform_rays_equal_the_plain_loop() {
+        let mut rng = PixelRng::new(5, 13);
+        let specials = [f32::NAN, -0.0, 0.0, f32::INFINITY, -1e-40];
+        let mut draw = || {
+            let r = rng.next_f32();
+            if r < 0.1 {
+                specials[(r * 50.0) as usize]
+            } else {
+                (rng.next_f32() - 0.5) * 1e3
+            }
+        };
+        let bits = |r: &Ray| r.bits();
+        let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
+        for n in 0..=16 {
+            for _ in 0..20 {
+                let origin = glam::Vec3::new(draw(), draw(), draw());
+                let time = draw();
+                let store = UniformRays::new(origin, time);
+                let mut d = [[0.0f32; 16]; 3];
+                for c in d.iter_mut().flatten() {
+                    *c = draw();
+                }
+                let o = origin.to_array().map(|c| [c; 16]);
+                let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
+                let mut want = vec![head; 3];
+                append_plain(
+                    [&o[0][..], &o[1][..], &o[2][..]],
+                    [&d[0][..], &d[1][..], &d[2][..]],
+                    &[time; 16],
+                    n,
+                    &mut want,
+                );
+                // Room for all sixteen, filled with the sentinel, then cut back.
+                let mut got = vec![head; 3];
+                got.resize(3 + 16, sentinel);
+                got.truncate(3);
+                store.append([&d[0], &d[1], &d[2]], n, &mut got);
+                assert_eq!(got.len(), 3 + n);
+                for (g, w) in got.iter().zip(&want) {
+                    assert_eq!(bits(g), bits(w), "n {n}");
+                }
+                // SAFETY: the vector was 19 rays long before `truncate`, so its
+                // capacity covers rays `3 + n..19`, still the sentinel's bytes unless
+                // the store wrote past ray `n`.
+                let spare = unsafe { std::slice::from_raw_parts(got.as_ptr().add(3 + n), 16 - n) };
+                for r in spare {
+                    assert_eq!(bits(r), bits(&sentinel), "n {n}: wrote past the rays");
                 }
             }
         }
