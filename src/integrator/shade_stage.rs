@@ -607,6 +607,13 @@ struct ChildPaths {
 /// `RayQueue::push` (five arrays, each a capacity check) right where it was decided was
 /// about a tenth of `shade_group_lanes`; run as a second pass over the group's hits it
 /// loaded the surface lanes and gathered the paths' data a second time.
+///
+/// Tried and not kept: for a mirror alone or a clear glass alone, the weights and the
+/// cutoff in lanes (throughputs gathered as x, y, z lanes, glam's `max_element` as two
+/// selects, then one entry per kept lane); the shading test matched it bit for bit
+/// (7052 reflected, 1094 refracted children) and the images were byte-identical, but
+/// `perf stat -e task-clock`, whitted_base `--spp 9 --sampler grid`, 1 thread, 5
+/// interleaved rounds, went from 751 ms (median, this loop) to 764 ms (base 761 ms).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn specular_children(
