@@ -93,26 +93,26 @@ pub(super) trait SlabTest<L: Lanes> {
 }
 
 impl<L: Lanes> SlabTest<L> for NodeRay<L> {
-    /// Ize's test scales `tmax` itself.
+    /// Ize's far-plane scale applied to `tmax`: `tmax * (1 + 2 gamma(3))`, once per new
+    /// interval end rather than in every node test and every pop.
     #[inline(always)]
     fn bound(&self, tmax: f32) -> f32 {
-        tmax
+        tmax * ROBUST_FAR_SCALE
     }
-    /// The same arithmetic as `Aabb::intersect`.
+    /// The same arithmetic as `Aabb::intersect` (`bound` is its scaled `tmax`).
     #[inline(always)]
-    fn test<const N: usize>(&self, p: &[[f32; N]; 6], tmax: f32) -> (L, u32) {
+    fn test<const N: usize>(&self, p: &[[f32; N]; 6], bound: f32) -> (L, u32) {
         let d = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv[a];
         let f = |plane: usize, a: usize| (L::load(&p[plane]) - self.o[a]) * self.inv_far[a];
         let enter =
             d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
-        let exit = f(self.far[0], 0).minps(
-            f(self.far[1], 1).minps(f(self.far[2], 2).minps(L::splat(tmax * ROBUST_FAR_SCALE))),
-        );
+        let exit = f(self.far[0], 0)
+            .minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(L::splat(bound))));
         (enter, enter.le(exit).bitmask())
     }
     #[inline(always)]
-    fn may_enter(d: f32, tmax: f32) -> bool {
-        d <= tmax * ROBUST_FAR_SCALE
+    fn may_enter(d: f32, bound: f32) -> bool {
+        d <= bound
     }
 }
 

@@ -84,8 +84,10 @@ struct StreamRay {
     a: [f32; 3],
     tmin: f32,
     b: [f32; 3],
-    /// The end of the ray's interval: the closest hit so far; NaN once an occlusion
-    /// query is answered (a NaN far distance enters no child).
+    /// The end of the ray's interval: the closest hit so far (with Ize's test times its
+    /// far-plane scale `1 + 2 gamma(3)`, applied here once rather than in every node
+    /// test); NaN once an occlusion query is answered (a NaN far distance enters no
+    /// child).
     tmax: f32,
     c: [f32; 3],
     /// With the FMA test, the ray's slack (`slab_fma::t_slack`): `tmin` and `tmax` are
@@ -195,7 +197,7 @@ impl Scratch {
                     a: q.origin.to_array(),
                     tmin: q.tmin,
                     b: q.inv_dir.to_array(),
-                    tmax: q.tmax,
+                    tmax: q.tmax * ROBUST_FAR_SCALE,
                     c: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
                     ..StreamRay::default()
                 }
@@ -259,7 +261,7 @@ impl<L: FusedLanes> OctantPlanes<L> {
             let d = |a: usize| (self.near[a] - s(r.a[a])) * s(r.b[a]);
             let f = |a: usize| (self.far[a] - s(r.a[a])) * s(r.c[a]);
             let enter = d(0).maxps(d(1).maxps(d(2).maxps(s(r.tmin))));
-            let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax * ROBUST_FAR_SCALE))));
+            let exit = f(0).minps(f(1).minps(f(2).minps(s(r.tmax))));
             (enter, enter.le(exit))
         }
     }
@@ -450,7 +452,7 @@ where
             }
         } else {
             // The query's interval ends at the best hit so far (`r.tmax` is the node
-            // tests' bound, widened with the FMA test).
+            // tests' bound: widened with the FMA test, scaled with Ize's).
             let tmax = s.best[id].map_or(q.tmax, |h| h.t);
             let slack = r.slack;
             let h = if is_leaf(node) {
@@ -463,7 +465,11 @@ where
                 self.closest_from(q, node, tmax)
             };
             if let Some(h) = h {
-                s.rays[id].tmax = if FMA { widened_tmax(h.t, slack) } else { h.t };
+                s.rays[id].tmax = if FMA {
+                    widened_tmax(h.t, slack)
+                } else {
+                    h.t * ROBUST_FAR_SCALE
+                };
                 s.best[id] = Some(h);
             }
         }
