@@ -750,19 +750,9 @@ mod tests {
         };
         let (w, h) = (42, 30);
         // Every whole block of the image, then one reaching past its right edge.
-        let mut blocks: Vec<(u32, u32)> = (0..h / 4)
-            .flat_map(|by| (0..w / 4).map(move |bx| (4 * bx, 4 * by)))
-            .collect();
+        let mut blocks = whole_blocks(w, h);
         blocks.push((w - 2, 8));
-        let pixels: Vec<(u32, u32, u64)> = blocks
-            .iter()
-            .flat_map(|&(bx, by)| {
-                (0..16u32).map(move |i| {
-                    let (x, y) = (bx + i % 4, by + i / 4);
-                    (x, y, (y * w + x) as u64)
-                })
-            })
-            .collect();
+        let pixels = block_pixels(&blocks, w);
         let shifted: Vec<(u32, u32)> = blocks.iter().map(|&(x, y)| (x, y + 1)).collect();
         let mut cases = 0;
         for (effects, terms) in [
@@ -831,6 +821,27 @@ mod tests {
         assert_eq!(cases, 12);
     }
 
+    /// The top-left corners of an image's whole 4x4 blocks, row by row.
+    fn whole_blocks(w: u32, h: u32) -> Vec<(u32, u32)> {
+        (0..h / 4)
+            .flat_map(|by| (0..w / 4).map(move |bx| (4 * bx, 4 * by)))
+            .collect()
+    }
+
+    /// The 16 pixels of each block (x, y, and the pixel index in an image `w` wide),
+    /// block by block, row-major inside a block.
+    fn block_pixels(blocks: &[(u32, u32)], w: u32) -> Vec<(u32, u32, u64)> {
+        blocks
+            .iter()
+            .flat_map(|&(bx, by)| {
+                (0..16u32).map(move |i| {
+                    let (x, y) = (bx + i % 4, by + i / 4);
+                    (x, y, (y * w + x) as u64)
+                })
+            })
+            .collect()
+    }
+
     /// One staging reused by cameras of different eyes and shutter open times (as a
     /// worker's is from tile to tile): the kept store of rays from the eye
     /// ([`UniformRays`]) is remade for each, so the rays stay the scalar oracle's bit
@@ -839,18 +850,8 @@ mod tests {
     #[test]
     fn a_reused_staging_follows_the_camera() {
         let (w, h) = (16u32, 8u32);
-        let blocks: Vec<(u32, u32)> = (0..h / 4)
-            .flat_map(|by| (0..w / 4).map(move |bx| (4 * bx, 4 * by)))
-            .collect();
-        let pixels: Vec<(u32, u32, u64)> = blocks
-            .iter()
-            .flat_map(|&(bx, by)| {
-                (0..16u32).map(move |i| {
-                    let (x, y) = (bx + i % 4, by + i / 4);
-                    (x, y, (y * w + x) as u64)
-                })
-            })
-            .collect();
+        let blocks = whole_blocks(w, h);
+        let pixels = block_pixels(&blocks, w);
         let (a, b) = (Vec3::new(0.3, 1.7, 5.2), Vec3::new(-1.0, 0.5, 3.0));
         let mut st = CameraStaging::default();
         let mut cases = 0;

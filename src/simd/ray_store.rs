@@ -293,21 +293,25 @@ mod tests {
     use super::*;
     use crate::integrator::sampling::PixelRng;
 
+    /// A ray component: one in ten a special value (NaN, signed zeros, infinity, a
+    /// subnormal), otherwise uniform in (-500, 500).
+    fn component(rng: &mut PixelRng) -> f32 {
+        const SPECIALS: [f32; 5] = [f32::NAN, -0.0, 0.0, f32::INFINITY, -1e-40];
+        let r = rng.next_f32();
+        if r < 0.1 {
+            SPECIALS[(r * 50.0) as usize]
+        } else {
+            (rng.next_f32() - 0.5) * 1e3
+        }
+    }
+
     /// The transposed stores give the plain loop's rays, bit for bit (NaN, signed
     /// zeros and infinities among the components), for every count 0..=16 of rays
     /// from 16-lane arrays, appended after rays already in the vector.
     #[test]
     fn transposed_stores_equal_the_plain_loop() {
         let mut rng = PixelRng::new(3, 9);
-        let specials = [f32::NAN, -0.0, 0.0, f32::INFINITY, -1e-40];
-        let mut draw = || {
-            let r = rng.next_f32();
-            if r < 0.1 {
-                specials[(r * 50.0) as usize]
-            } else {
-                (rng.next_f32() - 0.5) * 1e3
-            }
-        };
+        let mut draw = || component(&mut rng);
         for n in 0..=16 {
             for _ in 0..20 {
                 let mut a = [[0.0f32; 16]; 7];
@@ -320,14 +324,7 @@ mod tests {
                 let (mut got, mut want) = (vec![head; 3], vec![head; 3]);
                 append_rays(o, d, &a[6], n, &mut got);
                 append_plain(o, d, &a[6], n, &mut want);
-                let bits = |r: &Ray| {
-                    [
-                        r.origin.to_array(),
-                        r.dir.to_array(),
-                        [r.tmin, r.tmax, r.time],
-                    ]
-                    .map(|c| c.map(f32::to_bits))
-                };
+                let bits = |r: &Ray| r.bits();
                 assert_eq!(got.len(), 3 + n);
                 for (g, w) in got.iter().zip(&want) {
                     assert_eq!(bits(g), bits(w), "n {n}");
@@ -344,15 +341,7 @@ mod tests {
     #[test]
     fn uniform_rays_equal_the_plain_loop() {
         let mut rng = PixelRng::new(5, 13);
-        let specials = [f32::NAN, -0.0, 0.0, f32::INFINITY, -1e-40];
-        let mut draw = || {
-            let r = rng.next_f32();
-            if r < 0.1 {
-                specials[(r * 50.0) as usize]
-            } else {
-                (rng.next_f32() - 0.5) * 1e3
-            }
-        };
+        let mut draw = || component(&mut rng);
         let bits = |r: &Ray| r.bits();
         let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
         for n in 0..=16 {
