@@ -615,6 +615,34 @@ mod tests {
     use crate::scene::{Camera, CameraEffects, LensFrame};
     use glam::Vec3;
 
+    /// The scalar oracle's rays and offsets for `pixels` (seed 5), pixel after pixel.
+    fn oracle_rays(
+        camera: &CameraSampler,
+        pixels: &[(u32, u32, u64)],
+        drawn: &mut EffectSamplesDrawn,
+    ) -> (Vec<Ray>, Vec<(f32, f32)>) {
+        let (mut rays, mut off) = (Vec::new(), Vec::new());
+        let mut s = PixelSamples::default();
+        for &(x, y, index) in pixels {
+            camera.pixel_samples(5, index, x, y, &mut s, drawn);
+            rays.extend_from_slice(&s.rays);
+            off.extend_from_slice(&s.offsets);
+        }
+        (rays, off)
+    }
+
+    /// [`CameraSampler::block_rays`]' rays and offsets for the same seed.
+    fn block_rays_of(
+        camera: &CameraSampler,
+        pixels: PixelBlocks,
+        st: &mut CameraStaging,
+        drawn: &mut EffectSamplesDrawn,
+    ) -> (Vec<Ray>, Vec<(f32, f32)>) {
+        let (mut rays, mut off) = (Vec::new(), Vec::new());
+        camera.block_rays(5, pixels, st, &mut off, &mut rays, drawn);
+        (rays, off)
+    }
+
     /// Every sampler, both filters, with and without lens (polygonal and round, 2 to
     /// 16 points per eye sample), shutter, eye motion and orthographic projection, a
     /// sample range: the lane-parallel rays are the scalar
@@ -687,25 +715,12 @@ mod tests {
                             lens: LensFrame::new(&cam, &effects),
                             plan,
                         };
-                        let (mut want_rays, mut want_off) = (Vec::new(), Vec::new());
                         let mut want_drawn = EffectSamplesDrawn::default();
-                        let mut s = PixelSamples::default();
-                        for &(x, y, index) in &pixels {
-                            camera.pixel_samples(5, index, x, y, &mut s, &mut want_drawn);
-                            want_rays.extend_from_slice(&s.rays);
-                            want_off.extend_from_slice(&s.offsets);
-                        }
-                        let (mut rays, mut off) = (Vec::new(), Vec::new());
+                        let (want_rays, want_off) = oracle_rays(&camera, &pixels, &mut want_drawn);
                         let mut drawn = EffectSamplesDrawn::default();
                         let mut st = CameraStaging::default();
-                        camera.block_rays(
-                            5,
-                            (&pixels, &[]),
-                            &mut st,
-                            &mut off,
-                            &mut rays,
-                            &mut drawn,
-                        );
+                        let (rays, off) =
+                            block_rays_of(&camera, (&pixels, &[]), &mut st, &mut drawn);
                         let bits = Ray::bits;
                         assert_eq!(rays.len(), want_rays.len());
                         for (i, (g, w)) in rays.iter().zip(&want_rays).enumerate() {
@@ -781,26 +796,13 @@ mod tests {
                     };
                     assert!(camera.constant_offsets());
                     assert_eq!(camera.plain_pinhole(), terms);
-                    let (mut want_rays, mut want_off) = (Vec::new(), Vec::new());
                     let mut drawn = EffectSamplesDrawn::default();
-                    let mut s = PixelSamples::default();
-                    for &(x, y, index) in &pixels {
-                        camera.pixel_samples(5, index, x, y, &mut s, &mut drawn);
-                        want_rays.extend_from_slice(&s.rays);
-                        want_off.extend_from_slice(&s.offsets);
-                    }
+                    let (want_rays, want_off) = oracle_rays(&camera, &pixels, &mut drawn);
                     let mut st = CameraStaging::default();
                     for list in [&blocks, &shifted] {
                         assert_eq!(blocks_match(&pixels, list), list == &blocks);
-                        let (mut rays, mut off) = (Vec::new(), Vec::new());
-                        camera.block_rays(
-                            5,
-                            (&pixels, list),
-                            &mut st,
-                            &mut off,
-                            &mut rays,
-                            &mut drawn,
-                        );
+                        let (rays, off) =
+                            block_rays_of(&camera, (&pixels, list), &mut st, &mut drawn);
                         assert_eq!(rays.len(), want_rays.len());
                         for (i, (g, r)) in rays.iter().zip(&want_rays).enumerate() {
                             let bits = Ray::bits;
@@ -884,22 +886,9 @@ mod tests {
                     },
                 };
                 assert!(camera.plain_pinhole());
-                let mut want = Vec::new();
                 let mut drawn = EffectSamplesDrawn::default();
-                let mut s = PixelSamples::default();
-                for &(x, y, index) in &pixels {
-                    camera.pixel_samples(5, index, x, y, &mut s, &mut drawn);
-                    want.extend_from_slice(&s.rays);
-                }
-                let (mut rays, mut off) = (Vec::new(), Vec::new());
-                camera.block_rays(
-                    5,
-                    (&pixels, &blocks),
-                    &mut st,
-                    &mut off,
-                    &mut rays,
-                    &mut drawn,
-                );
+                let (want, _) = oracle_rays(&camera, &pixels, &mut drawn);
+                let (rays, _) = block_rays_of(&camera, (&pixels, &blocks), &mut st, &mut drawn);
                 assert_eq!(rays.len(), want.len());
                 for (i, (g, r)) in rays.iter().zip(&want).enumerate() {
                     assert_eq!(g.bits(), r.bits(), "{sampler} eye {eye} ray {i}");
