@@ -13,8 +13,9 @@
 //!
 //! Exactness: each lane gets the queue path's answer (`tiny_shadow::TinyShadow`, or
 //! `SceneAccel::any_hit_batch` through the tiny scene where no shadow filter is on) bit
-//! for bit: the same lane kernels (`TinyGroup::triangle_blocks` per shear key,
-//! `sphere_lanes`, [`settle_gathered`]) on the same ray fields, a lane's answer
+//! for bit: the same lane kernels (`TinyGroup::triangle_blocks` per shear key, the
+//! sphere roots of `sphere_lanes` and `settle_gathered`, each sphere's computed once
+//! per lane group: `tiny_shadow::settle_near_spheres`) on the same ray fields, a lane's answer
 //! depending on its ray alone; invalid rays untested and unblocked, as
 //! `TinyScene::for_each_group` leaves them; the glass factor multiplied in once per
 //! crossing. Two culls skip tests that cannot find a hit (`simd::shadow_cull`, where
@@ -43,12 +44,12 @@
 
 use super::shadow::ShadowFilter;
 use super::tiny_shadow::{
-    GlassSet, LaneSettled, glass_index, listed_near_bits, near_bits, settle_spheres,
+    GlassSet, LaneSettled, glass_index, listed_near_bits, near_bits, settle_near_spheres,
     tiny_shadow_scene,
 };
 use crate::accel::{SceneAccel, TINY_MAX_PRIMITIVES};
 use crate::simd::direct_light::ShadowLanes;
-use crate::simd::kernels::{RayLanes, sphere_lanes};
+use crate::simd::kernels::RayLanes;
 use crate::simd::lanes3::V3;
 use crate::simd::shadow_cull::{AxisPlane, ClearOf, origin_ball};
 use crate::simd::tiny::{TinyGroup, lane_shear_keys};
@@ -176,18 +177,20 @@ impl PointOccluders {
         let bits = |list: &[(Vec3, f32)], index: &[Option<usize>]| {
             listed_near_bits(list, index, all, near)
         };
-        let mut sph = 0u32;
-        for (k, &(center, radius)) in self.spheres.iter().enumerate() {
-            let test = rest & !sph;
-            if all >> (k & 31) & 1 == 1 && test != 0 {
-                sph |= sphere_lanes(&lanes, center, radius, tmax, test).1;
-            }
-        }
-        settle_spheres(
+        // Each near sphere's roots are computed once and kept for the glass
+        // settlement (`settle_near_spheres`, as the quad lights do).
+        //
+        // Before: `sphere_lanes` per near sphere, then `settle_gathered` computing the
+        // roots of the spheres the lanes met again (the chrome and the glass sphere's
+        // roots twice wherever a lane group met them).
+        settle_near_spheres(
             &lanes,
             tmax,
-            (live, tri, sph),
+            (live, tri, rest),
+            &self.spheres,
+            all,
             self.glass.as_ref(),
+            &self.glass_index,
             |(opaque, glass, _)| {
                 let (oi, gi) = &self.glass_index;
                 (bits(opaque, oi), bits(glass, gi))

@@ -632,121 +632,111 @@ impl LaneOccluders {
         // Measured (whitted_area64 512x384, 1 thread, AVX-512, perf): before, the
         // sphere test per key group was 7.1 % of the frame's samples, and the glass
         // settlement (`settle_gathered`, computing the same roots again) 4.5 %.
-        let mut roots: [Option<SphereRoots<Packet>>; TINY_MAX_PRIMITIVES] =
-            [None; TINY_MAX_PRIMITIVES];
-        let mut sph = 0u32;
-        let open = valid & !tri;
-        for (k, &(center, radius)) in self.spheres.iter().enumerate() {
-            let rest = open & !sph;
-            if near_spheres.all >> (k & 31) & 1 == 1 && rest != 0 {
-                let r = sphere_roots(&lanes, center, radius);
-                sph |= meets_of_roots(&lanes, r, tmax, rest);
-                if let Some(slot) = roots.get_mut(k) {
-                    *slot = Some(r);
-                }
-            }
-        }
-        let Some((opaque, glass, transmission)) = self.glass.as_ref() else {
-            return LaneSettled {
-                pass: live & !(tri | sph),
-                factor: V3::splat(Vec3::ONE),
-                settled: 0,
-            };
-        };
-        if sph == 0 {
-            return LaneSettled {
-                pass: live & !tri,
-                factor: V3::splat(Vec3::ONE),
-                settled: 0,
-            };
-        }
-        // `settle_gathered(lanes, tmax, sph, opaque, glass)` on the near spheres of each
-        // list, each sphere's roots taken from above where its test ran there.
-        let (oi, gi) = &self.glass_index;
-        let mut roots_of = |s: &(Vec3, f32), index: Option<usize>| match index {
-            Some(i) if i < TINY_MAX_PRIMITIVES => {
-                *roots[i].get_or_insert_with(|| sphere_roots(&lanes, s.0, s.1))
-            }
-            // (Every listed sphere is one of the scene's: `LaneOccluders::new`.)
-            _ => sphere_roots(&lanes, s.0, s.1),
-        };
-        let mut blocked = 0;
-        for (k, (s, &index)) in opaque.iter().zip(oi).enumerate() {
-            let rest = sph & !blocked;
-            if rest == 0 {
-                break;
-            }
-            if near_spheres.opaque >> (k & 31) & 1 == 1 {
-                blocked |= meets_of_roots(&lanes, roots_of(s, index), tmax, rest);
-            }
-        }
-        let active = sph & !blocked;
-        let mut n = [0u32; PACKET_WIDTH];
-        for (k, (s, &index)) in glass.iter().zip(gi).enumerate() {
-            if active == 0 {
-                break;
-            }
-            if near_spheres.glass >> (k & 31) & 1 == 1 {
-                let (once, twice) = crossings_of_roots(&lanes, roots_of(s, index), tmax, active);
-                for (i, c) in n.iter_mut().enumerate() {
-                    *c += (once >> i & 1) + (twice >> i & 1);
-                }
-            }
-        }
-        glass_settled((live, tri, sph), blocked, &n, *transmission)
+        settle_near_spheres(
+            &lanes,
+            tmax,
+            (live, tri, valid & !tri),
+            &self.spheres,
+            near_spheres.all,
+            self.glass.as_ref(),
+            &self.glass_index,
+            |_| (near_spheres.opaque, near_spheres.glass),
+        )
     }
 }
 
-/// The end of both lane-settled shadow paths (quad lights here, point lights in
-/// `point_shadow`): of the `live` lanes, `tri` are blocked by a triangle and `sph` meet
-/// a sphere. Without a glass split every sphere blocks; with one (`glass`), the sphere
-/// lanes are settled as the queue path settles them (`settle_gathered` on the spheres
-/// `near` picks from each list: its bits of the opaque and the glass list), each lane's
-/// transmittance multiplied in once per crossing, and a lane passes unless blocked or
-/// fully dark.
+/// The spheres of both lane-settled shadow paths (quad lights in [`LaneOccluders`],
+/// point lights in `point_shadow`): of the `live` lanes, `tri` are blocked by a
+/// triangle and `open` (valid, not blocked by a triangle) are tested against the
+/// spheres of `spheres` whose bit is set in `all` (the others meet none of these
+/// rays), each sphere's roots computed once (`sphere_roots`) and kept for the glass
+/// settlement. Without a glass split every sphere blocks; with one (`glass`, its lists'
+/// indices in `spheres` in `index`), the sphere lanes are settled as the queue path
+/// settles them (`settle_gathered(lanes, tmax, sph, opaque, glass)` on the spheres
+/// `near_lists` picks from each list: its bits of the opaque and the glass list), each
+/// lane's transmittance multiplied in once per crossing, and a lane passes unless
+/// blocked or fully dark.
+///
+/// The roots of a sphere do not depend on the lanes asked about (`meets_of_roots` and
+/// `crossings_of_roots` are `sphere_lanes` and `sphere_crossings` on them), so every
+/// answer is the one `settle_gathered` gives.
 #[inline(always)]
-pub(crate) fn settle_spheres(
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn settle_near_spheres(
     lanes: &RayLanes<Packet>,
     tmax: Packet,
-    (live, tri, sph): (u32, u32, u32),
+    (live, tri, open): (u32, u32, u32),
+    spheres: &[(Vec3, f32)],
+    all: u32,
     glass: Option<&GlassSet>,
-    near: impl FnOnce(&GlassSet) -> (u32, u32),
+    index: &(Vec<Option<usize>>, Vec<Option<usize>>),
+    near_lists: impl FnOnce(&GlassSet) -> (u32, u32),
 ) -> LaneSettled {
-    let one = V3::splat(Vec3::ONE);
+    let mut roots: [Option<SphereRoots<Packet>>; TINY_MAX_PRIMITIVES] = [None; TINY_MAX_PRIMITIVES];
+    let mut sph = 0u32;
+    for (k, &(center, radius)) in spheres.iter().enumerate() {
+        let rest = open & !sph;
+        if all >> (k & 31) & 1 == 1 && rest != 0 {
+            let r = sphere_roots(lanes, center, radius);
+            sph |= meets_of_roots(lanes, r, tmax, rest);
+            if let Some(slot) = roots.get_mut(k) {
+                *slot = Some(r);
+            }
+        }
+    }
     let Some(set) = glass else {
         return LaneSettled {
             pass: live & !(tri | sph),
-            factor: one,
+            factor: V3::splat(Vec3::ONE),
             settled: 0,
         };
     };
     if sph == 0 {
         return LaneSettled {
             pass: live & !tri,
-            factor: one,
+            factor: V3::splat(Vec3::ONE),
             settled: 0,
         };
     }
     let (opaque, glass, transmission) = set;
-    let (opaque_bits, glass_bits) = near(set);
-    let pick = |list: &[(Vec3, f32)], bits: u32| {
-        let mut out = [(Vec3::ZERO, 0.0f32); TINY_MAX_PRIMITIVES];
-        let mut n = 0;
-        for (k, s) in list.iter().enumerate() {
-            if bits >> (k & 31) & 1 == 1 {
-                out[n & 7] = *s;
-                n += 1;
+    let (opaque_bits, glass_bits) = near_lists(set);
+    // `settle_gathered(lanes, tmax, sph, opaque, glass)` on the near spheres of each
+    // list, each sphere's roots taken from above where its test ran there.
+    let (oi, gi) = index;
+    let mut roots_of = |s: &(Vec3, f32), index: Option<usize>| match index {
+        Some(i) if i < TINY_MAX_PRIMITIVES => {
+            *roots[i].get_or_insert_with(|| sphere_roots(lanes, s.0, s.1))
+        }
+        // (Every listed sphere is one of the scene's: `glass_index`.)
+        _ => sphere_roots(lanes, s.0, s.1),
+    };
+    let mut blocked = 0;
+    for (k, (s, &index)) in opaque.iter().zip(oi).enumerate() {
+        let rest = sph & !blocked;
+        if rest == 0 {
+            break;
+        }
+        if opaque_bits >> (k & 31) & 1 == 1 {
+            blocked |= meets_of_roots(lanes, roots_of(s, index), tmax, rest);
+        }
+    }
+    let active = sph & !blocked;
+    let mut n = [0u32; PACKET_WIDTH];
+    for (k, (s, &index)) in glass.iter().zip(gi).enumerate() {
+        if active == 0 {
+            break;
+        }
+        if glass_bits >> (k & 31) & 1 == 1 {
+            let (once, twice) = crossings_of_roots(lanes, roots_of(s, index), tmax, active);
+            for (i, c) in n.iter_mut().enumerate() {
+                *c += (once >> i & 1) + (twice >> i & 1);
             }
         }
-        (out, n.min(TINY_MAX_PRIMITIVES))
-    };
-    let (o, no) = pick(opaque, opaque_bits);
-    let (g, ng) = pick(glass, glass_bits);
-    let (blocked, n) = settle_gathered(lanes, tmax, sph, &o[..no], &g[..ng]);
+    }
     glass_settled((live, tri, sph), blocked, &n, *transmission)
 }
 
-/// The end of [`settle_spheres`] with a glass split: of the `live` lanes, `tri` are
+/// The end of [`settle_near_spheres`] with a glass split: of the `live` lanes, `tri` are
 /// blocked by a triangle, `sph` meet a sphere, `blocked` of those an opaque one, and
 /// the others cross the glass spheres `n[i]` times.
 #[inline(always)]
