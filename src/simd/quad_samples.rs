@@ -100,8 +100,8 @@ pub struct QuadSamples {
     /// The origin where `(target - base) · n_g` is not negative, and where it is.
     plain: V3,
     flipped: V3,
-    /// `dark_below(hl.shininess)`.
-    dark: f32,
+    /// `faint_below(hl.shininess)`.
+    faint: f32,
 }
 
 /// A cosine below which the lane `pow(cos, shininess)` of the highlight
@@ -117,12 +117,42 @@ pub struct QuadSamples {
 /// branch), and `x = 0` returns zero for `e > 0`. A test checks it on every f32 just
 /// below the cut and on a sweep of `[0, cut)` for shininesses from 0.5 to 10000.
 ///
-/// Measured: see [`QuadSamples::lanes`].
+/// The lanes now leave out the highlight below a higher cut, [`faint_below`]; this one
+/// stays as the documented zero of the lane `pow` (its test), for the point lights'
+/// recorded attempt (`direct_light::point_light`).
 pub fn dark_below(shininess: f32) -> f32 {
     if !(shininess.is_finite() && shininess > 0.0) {
         return 0.0;
     }
     (-150.0 / shininess as f64).exp2() as f32
+}
+
+/// The exponent of [`faint_below`]: highlights below `2^-FAINT_EXP` are left out.
+pub const FAINT_EXP: f64 = 64.0;
+
+/// A cosine below which the highlight's power is left out (`+0.0`) of the light
+/// samples of [`QuadSamples::lanes`]: `2^(-FAINT_EXP / shininess)` rounded to f32
+/// (`0`, never leaving anything out, for a shininess that is not positive and finite or
+/// where the cut is not a normal f32). Below it `x^e < 2^-64 (1 + 2^-24)^e`, and the lane
+/// `pow` is within `POW_REL_ERROR` of that (or `POW_TINY` absolute): a term below
+/// `1.1 · 2^-64` of the specular reflectance, left out.
+///
+/// Why: between `2^(-126/e)` and `2^(-64/e)` the power is normal but the products it
+/// goes through (`specular · p`, the light's weight, `1 / samples`, the path weight
+/// and the glass factor) reach the subnormals, each such multiply taking a microcode
+/// assist on Intel; between [`dark_below`] and `2^(-126/e)` the power itself is
+/// subnormal. 2^-64 leaves 62 binades for those factors before the products underflow.
+/// Measured: whitted_area64 with the CPU flushing subnormals (FTZ/DAZ in MXCSR, an
+/// `LD_PRELOAD` constructor), perf, 1 thread, AVX-512, 4 kHz, two runs each:
+/// `shade_quads` 2999/2996 -> 2637/2640 samples, the difference on the multiplies
+/// `specular · p`, `weight · f`, `· 1/samples` and `contribution · weight · factor`
+/// (sample offsets within `shade_quads` compared run for run).
+pub fn faint_below(shininess: f32) -> f32 {
+    if !(shininess.is_finite() && shininess > 0.0) {
+        return 0.0;
+    }
+    let cut = (-FAINT_EXP / shininess as f64).exp2() as f32;
+    if cut.is_normal() { cut } else { 0.0 }
 }
 
 impl QuadSamples {
@@ -138,10 +168,10 @@ impl QuadSamples {
             Some(QuadSamples {
                 plain: offset_ray_origin(s.base, s.p_error, s.ng, s.ng),
                 flipped: offset_ray_origin(s.base, s.p_error, s.ng, s.ng.negated()),
-                dark: if hl.specular == Vec3::ZERO {
+                faint: if hl.specular == Vec3::ZERO {
                     0.0
                 } else {
-                    dark_below(hl.shininess)
+                    faint_below(hl.shininess)
                 },
             })
         } else {
@@ -157,10 +187,11 @@ impl QuadSamples {
 
     /// `quad_light(s, hl, q, u, v, samples, active)`, bit for bit (`hl` the highlight
     /// given to [`new`](Self::new)), except in the contribution of lanes outside the
-    /// returned `mask` (which nobody reads): the highlight's `pow` is left out where
-    /// every lane of the mask has its cosine below [`dark_below`] (it is `+0.0` there),
-    /// and a power-of-two sample count divides by multiplying with its reciprocal
-    /// (exact: both round the same real number).
+    /// returned `mask` (which nobody reads) and of lanes whose highlight cosine is below
+    /// [`faint_below`], whose highlight power is `+0.0` (below `1.1 · 2^-64` in
+    /// `quad_light`): the highlight's `pow` is left out where every lane of the mask has
+    /// its cosine below that cut, and a power-of-two sample count divides by
+    /// multiplying with its reciprocal (exact: both round the same real number).
     ///
     /// Measured (whitted_area64 512x384, 1 thread, AVX-512, perf): the highlight's
     /// `pow` was 9.3 % of the frame's samples (the chrome and glass spheres'
@@ -218,8 +249,9 @@ impl QuadSamples {
 
 impl QuadSamples {
     /// `direct_light::reflectance`, its operations in its order, with the highlight's
-    /// `pow` replaced by `+0.0` where every lane of `need` that the returned mask keeps
-    /// has its cosine below `self.dark` (see [`lanes`](Self::lanes)).
+    /// power `+0.0` in the lanes whose cosine is below `self.faint`, and `pow` left out
+    /// where that holds for every lane of `need` that the returned mask keeps (see
+    /// [`lanes`](Self::lanes)).
     #[inline(always)]
     fn reflectance(&self, s: &SurfaceLanes, hl: &Highlight, wi: V3, need: u32) -> (Packet, V3) {
         let zero = Packet::splat(0.0);
@@ -229,11 +261,12 @@ impl QuadSamples {
         if hl.specular != Vec3::ZERO {
             let h = wi.plus(s.wo).normalize_or_zero();
             let cos_h = h.dot(s.ns).fast_max(zero);
-            let bright = !cos_h.simd_lt(Packet::splat(self.dark)).to_bitmask();
-            let p = if bright & need & mask.to_bitmask() & 0xffff == 0 {
+            let faint = cos_h.simd_lt(Packet::splat(self.faint));
+            let p = if !faint.to_bitmask() & need & mask.to_bitmask() & 0xffff == 0 {
                 zero
             } else {
-                pow(cos_h, Packet::splat(hl.shininess))
+                // (A blend, no arithmetic on the subnormal powers `pow` may return.)
+                faint.select(zero, pow(cos_h, Packet::splat(hl.shininess)))
             };
             f = f.plus(V3::splat(hl.specular).scale(p));
         }
@@ -248,7 +281,8 @@ mod tests {
     use crate::test_rng::xorshift64;
 
     /// [`QuadSamples::lanes`] against `quad_light`, every field bit for bit (origin,
-    /// direction, extent, contribution, mask): random shading points with random
+    /// direction, extent, contribution, mask) but the contribution of lanes whose faint
+    /// highlight was left out (within the term left out): random shading points with random
     /// normals (a light behind, beside and in front of the surface, so that both
     /// origins are chosen, mixed within lane groups), errors, reflectances with and
     /// without a highlight, random quad lights and light points, partial groups.
@@ -258,6 +292,7 @@ mod tests {
         let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32;
         let (mut lanes, mut flipped, mut plain) = (0usize, 0usize, 0usize);
         let (mut contributions, mut skipped, mut kept) = (0usize, 0usize, 0usize);
+        let mut flushed = 0usize;
         for case in 0..8000 {
             let mut r3 = |s: f32| Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s;
             let p = r3(20.0);
@@ -276,7 +311,13 @@ mod tests {
                     0.0
                 }),
                 wo: V3::splat(r3(2.0).normalize_or(Vec3::Z)),
-                albedo: V3::splat(Vec3::new(0.7, 0.5, 0.3)),
+                // No diffuse part in a quarter of the cases (the glass of the Whitted
+                // rows): the highlight alone, where leaving it out shows.
+                albedo: V3::splat(if case % 4 == 3 {
+                    Vec3::ZERO
+                } else {
+                    Vec3::new(0.7, 0.5, 0.3)
+                }),
             };
             let hl = Highlight {
                 specular: if case % 2 == 0 {
@@ -302,22 +343,52 @@ mod tests {
                 "case {case}: tmax"
             );
             assert_eq!(a.mask, b.mask, "case {case}: mask");
-            // The contribution of every lane of the mask (the others are never read).
-            let (ca, cb) = (bits(&a.contribution), bits(&b.contribution));
-            for i in (0..16).filter(|i| a.mask >> i & 1 == 1) {
-                let lane = |c: &[[u32; 16]; 3]| c.map(|c| c[i]);
-                assert_eq!(lane(&ca), lane(&cb), "case {case}: contribution {i}");
-                contributions += 1;
-            }
-            // Groups whose highlight was left out (every lane of the mask below the cut).
             let point = V3::splat(q.corner)
                 .plus(V3::splat(q.edge1).scale(u))
                 .plus(V3::splat(q.edge2).scale(v));
             let wi = point.minus(s.p).normalize_or_zero();
             let cos_h = wi.plus(s.wo).normalize_or_zero().dot(s.ns).to_array();
+            let cut = faint_below(hl.shininess);
+            // The contribution of every lane of the mask (the others are never read):
+            // `quad_light`'s bit for bit, or, where the highlight cosine is below the
+            // cut (up to the rounding of this test's cosine), within what leaving the
+            // highlight out moves it: the term `w · specular · p / samples`, `p < 1.1 ·
+            // 2^-64` and `w` the light's weight, twice (the sum `diffuse + specular · p`
+            // it left moves by at most twice the term as it rounds), and one ulp of the
+            // contribution for each of the two roundings after the sum.
+            let (ca, cb) = (bits(&a.contribution), bits(&b.contribution));
+            for i in (0..16).filter(|i| a.mask >> i & 1 == 1) {
+                let lane = |c: &[[u32; 16]; 3]| c.map(|c| c[i]);
+                contributions += 1;
+                if lane(&ca) == lane(&cb) {
+                    continue;
+                }
+                assert!(
+                    cos_h[i] < cut * (1.0 + 1e-5),
+                    "case {case}: contribution {i}"
+                );
+                let to = point.lane(i) - p;
+                let dist2 = to.length_squared() as f64;
+                let cos_l = -(to.as_dvec3().normalize().dot(q.normal.as_dvec3()));
+                let w = 7.0 * cos_l * q.area as f64 / dist2;
+                let term = w * 0.4 * 1.1 * (-FAINT_EXP).exp2() / samples as f64;
+                let (x, y) = (a.contribution.lane(i), b.contribution.lane(i));
+                for c in 0..3 {
+                    let ulp = (x[c].abs().max(y[c].abs()) as f64) * f32::EPSILON as f64;
+                    let diff = (x[c] as f64 - y[c] as f64).abs();
+                    // (A rounding among the subnormals is absolute: 2^-150.)
+                    let tiny = f32::from_bits(1) as f64;
+                    assert!(
+                        diff <= 2.0 * term + 2.0 * ulp + 2.0 * tiny,
+                        "case {case} lane {i}: {x} against {y}, term {term:e}"
+                    );
+                }
+                flushed += 1;
+            }
+            // Groups whose highlight was left out (every lane of the mask below the cut).
             let dark = (0..16)
                 .filter(|i| a.mask >> i & 1 == 1)
-                .all(|i| cos_h[i] < dark_below(hl.shininess));
+                .all(|i| cos_h[i] < cut);
             if hl.specular != Vec3::ZERO && a.mask != 0 {
                 (skipped, kept) = (skipped + dark as usize, kept + !dark as usize);
             }
@@ -332,11 +403,12 @@ mod tests {
         }
         eprintln!(
             "{lanes} lanes, {flipped} with a corner behind the surface, {plain} before; \
-             {contributions} contributions compared; highlight left out in {skipped} lit \
-             groups, kept in {kept}"
+             {contributions} contributions compared ({flushed} moved by leaving a faint \
+             highlight out); highlight left out in {skipped} lit groups, kept in {kept}"
         );
         assert!(flipped > lanes / 5 && plain > lanes / 5);
         assert!(contributions > lanes / 6 && skipped > 300 && kept > 300);
+        assert!(flushed > 100 && flushed < contributions / 4, "{flushed}");
     }
 
     /// [`dark_below`]: the lane `pow` gives `+0.0` (bit for bit) for every f32 of the
@@ -377,5 +449,40 @@ mod tests {
         }
         assert!(dark_below(200.0) > 0.59 && dark_below(500.0) > 0.8);
         assert!(checked > 400_000, "{checked}");
+    }
+
+    /// [`faint_below`]: the lane `pow` stays below `1.1 · 2^-64` (what `lanes` may
+    /// leave out) on the 2^16 floats just below the cut and on a sweep of `[0, cut)`,
+    /// for shininesses from 0.9 to 10000; no cut where it would not be a normal f32 or
+    /// the shininess is not positive and finite.
+    #[test]
+    fn the_faint_highlight_is_below_its_bound() {
+        let bound = 1.1 * (-FAINT_EXP).exp2();
+        let mut checked = 0usize;
+        for e in [0.9f32, 1.0, 2.0, 7.3, 30.0, 64.0, 200.0, 500.0, 1000.0, 1e4] {
+            let cut = faint_below(e);
+            assert!(cut.is_normal() && cut < 1.0, "shininess {e}: cut {cut}");
+            assert!(cut >= dark_below(e), "shininess {e}");
+            let below = (1..=1u32 << 16).map(|k| f32::from_bits(cut.to_bits() - k));
+            let sweep = (0..4000).map(|k| cut * 0.99f32.powi(k));
+            let xs: Vec<f32> = below.chain(sweep).filter(|&x| x < cut).collect();
+            for chunk in xs.chunks(16) {
+                let mut a = [0.0f32; 16];
+                a[..chunk.len()].copy_from_slice(chunk);
+                let got = pow(Packet::new(a), Packet::splat(e)).to_array();
+                for (x, g) in a.iter().zip(got) {
+                    assert!((g as f64) < bound, "{x}^{e} = {g}, below the cut {cut}");
+                    checked += 1;
+                }
+            }
+            // Just above the cut the power is not that small: the cut is tight.
+            let above = f32::from_bits(cut.to_bits() + 16);
+            assert!((above as f64).powf(e as f64) > (-FAINT_EXP).exp2(), "{e}");
+        }
+        for e in [0.5, 0.0, f32::NAN, f32::INFINITY, -3.0] {
+            assert_eq!(faint_below(e), 0.0, "shininess {e}");
+        }
+        assert!(faint_below(200.0) > 0.8 && faint_below(500.0) > 0.91);
+        assert!(checked > 600_000, "{checked}");
     }
 }
