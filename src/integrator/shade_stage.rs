@@ -243,12 +243,6 @@ pub(super) struct LanePaths {
 }
 
 impl LanePaths {
-    fn set(&mut self, i: usize, slot: u32, weight: Vec3, time: f32) {
-        self.slot[i] = slot;
-        (self.weight[0][i], self.weight[1][i], self.weight[2][i]) = (weight.x, weight.y, weight.z);
-        self.time[i] = time;
-    }
-
     /// Every lane from one hit.
     pub(super) fn splat(slot: u32, weight: Vec3, time: f32) -> Self {
         LanePaths {
@@ -393,14 +387,13 @@ fn shade_group_lanes(
         // The camera sample, weight and time of each hit's ray, gathered once for the
         // shadow rays of every light and the local radiance.
         let mut paths = LanePaths::default();
-        for (i, &q) in batch.ray[j..j + n].iter().enumerate() {
-            let q = q as usize;
-            paths.set(i, queue.slot(q), queue.weight(q), queue.rays[q].time);
-            if lane_children {
-                children.throughput[i] = queue.throughput(q);
-                children.path[i] = queue.path(q);
-            }
-        }
+        queue.gather(
+            &batch.ray[j..j + n],
+            &mut paths.slot,
+            &mut paths.weight,
+            &mut paths.time,
+            lane_children.then_some((&mut children.throughput, &mut children.path)),
+        );
         if keep_albedo {
             // The albedo lanes stored once (`V3::lane` stored all three vectors per hit).
             let [ax, ay, az] = [s.albedo.x, s.albedo.y, s.albedo.z].map(|p| p.to_array());

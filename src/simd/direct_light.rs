@@ -12,11 +12,13 @@
 
 use super::Packet;
 use super::lanes3::{V3, offset_ray_origin};
-use super::pow::pow;
+use super::pow::pow_uniform;
 use crate::geometry::{SPAWN_TO_ERROR, gamma};
 use crate::scene::{CHECKER_INSET, Checker};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
+use wide::bytemuck::cast;
+use wide::i32x16;
 
 /// The shading points of up to 16 hits (or one hit splatted over 16 light samples).
 #[derive(Clone, Copy, Debug)]
@@ -55,7 +57,7 @@ pub fn reflectance(s: &SurfaceLanes, hl: &Highlight, wi: V3) -> (Packet, V3) {
         let h = wi.plus(s.wo).normalize_or_zero();
         // f32::max(x, 0) returns 0 for a NaN x; maxps(x, 0) returns its second operand then.
         let cos_h = h.dot(s.ns).fast_max(zero);
-        let p = pow(cos_h, Packet::splat(hl.shininess));
+        let p = pow_uniform(cos_h, hl.shininess);
         f = f.plus(V3::splat(hl.specular).scale(p));
     }
     (mask, f)
@@ -320,11 +322,18 @@ pub fn checker_albedo(c: &Checker, p: V3, p_error: V3, outward: V3) -> (V3, u32)
         y: q.y.floor(),
         z: q.z.floor(),
     };
-    let half = Packet::splat(0.5);
-    let two = Packet::splat(2.0);
-    let parity = |x: Packet| x - two * (x * half).floor();
-    let sum = parity(q.x) + parity(q.y) + parity(q.z);
-    let odd = parity(sum).simd_eq(Packet::splat(1.0));
+    // The parity of the cell-index sum in integer lanes: the three floors below 2^24
+    // convert exactly, their wrapping sum stays below 2^26, and its low bit is the
+    // scalar `(x + y + z) as i64` parity (two's complement); the lanes not below 2^24
+    // are redone by the caller. Before: each index's parity as `x - 2 floor(x / 2)`,
+    // then the sum's parity the same way (four more floors, about eight more operations).
+    let (ix, iy, iz) = (
+        q.x.fast_round_int(),
+        q.y.fast_round_int(),
+        q.z.fast_round_int(),
+    );
+    let odd = ((ix + iy + iz) & i32x16::splat(1)).simd_eq(i32x16::splat(1));
+    let odd: Packet = cast(odd);
     let limit = Packet::splat(16_777_216.0);
     let exact = q.x.abs().simd_lt(limit) & q.y.abs().simd_lt(limit) & q.z.abs().simd_lt(limit);
     let albedo = V3::select(odd, V3::splat(c.color_b), V3::splat(c.color_a));
@@ -374,6 +383,68 @@ mod tests {
                 assert_eq!(bits(a.lane(i)), bits(b.lane(i)), "{v} lane {i}");
             }
         }
+    }
+
+    /// [`checker_albedo`] is `Material::albedo_on_surface` bit for bit in every lane it
+    /// does not hand back: random points of both signs (cells of both parities), cell
+    /// sizes a power of two and not, points on cell faces, and cell indices at and past
+    /// 2^24 (handed back, and only those).
+    #[test]
+    fn lane_checker_is_the_scalar_checker() {
+        let mut next = xorshift64(0x6a09_e667_f3bc_c908);
+        let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0;
+        let (mut colours, mut handed_back) = ([0usize; 2], 0);
+        for case in 0..3000 {
+            let scale = [1.0f32, 0.3, 2.5, 0.125][case % 4];
+            let c = Checker {
+                color_a: Vec3::new(0.9, 0.1, 0.2),
+                color_b: Vec3::new(0.05, 0.8, 0.3),
+                scale,
+            };
+            let m = crate::scene::Material {
+                checker: Some(c),
+                ..Default::default()
+            };
+            let size = [1.0f32, 50.0, 1e4, 2.5e7][case % 4 * 7 % 4];
+            let rows: Vec<[Vec3; 3]> = (0..16)
+                .map(|i| {
+                    let mut p = Vec3::new(unit(), unit(), unit()) * size;
+                    if i % 5 == 0 {
+                        p.y = (p.y * 4.0).round() * 0.25;
+                    }
+                    let err = Vec3::new(unit().abs(), unit().abs(), unit().abs()) * 1e-6;
+                    let n = Vec3::new(unit(), unit(), unit()).normalize_or(Vec3::Y);
+                    [p, err, n]
+                })
+                .collect();
+            let mut lanes = [[0.0f32; 16]; 9];
+            for (i, row) in rows.iter().enumerate() {
+                for (k, v) in row.iter().enumerate() {
+                    (lanes[3 * k][i], lanes[3 * k + 1][i], lanes[3 * k + 2][i]) = (v.x, v.y, v.z);
+                }
+            }
+            let v3 = |k: usize| V3::load(&lanes[3 * k], &lanes[3 * k + 1], &lanes[3 * k + 2]);
+            let (albedo, redo) = checker_albedo(&c, v3(0), v3(1), v3(2));
+            for (i, [p, err, n]) in rows.iter().enumerate() {
+                let want = m.albedo_on_surface(*p, *err, *n);
+                let inset = 2.0 * n.abs().dot(*err) + CHECKER_INSET * p.abs().max_element();
+                let q = ((*p - *n * inset) / scale).floor();
+                let huge = q.abs().max_element() >= 16_777_216.0;
+                assert_eq!(redo >> i & 1 == 1, huge, "case {case} lane {i}: {p} {q}");
+                if huge {
+                    handed_back += 1;
+                    continue;
+                }
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(
+                    bits(albedo.lane(i)),
+                    bits(want),
+                    "case {case} lane {i}: {p}"
+                );
+                colours[(want == c.color_b) as usize] += 1;
+            }
+        }
+        assert!(colours[0] > 5000 && colours[1] > 5000 && handed_back > 500);
     }
 
     /// [`spawn_ray_to_point`] gives [`spawn_ray_to`]'s origin, direction and extent bit
