@@ -20,10 +20,11 @@ impl SceneAccel {
         scratch: &mut BatchScratch,
     ) {
         debug_assert_eq!(rays.len(), out.len());
-        out.fill(None);
         if let Some(tiny) = &self.tiny {
+            // Writes every entry of `out` itself (`None` first): no second pass here.
             tiny.closest_batch(rays, out, &mut scratch.tiny);
         } else {
+            out.fill(None);
             self.closest_sets_batch(rays, out, scratch);
         }
         if let Some(m) = &self.moving {

@@ -368,7 +368,7 @@ pub fn sphere_lanes<L: Lanes>(
     tmax: L,
     active: u32,
 ) -> (L, u32) {
-    let (lo, hi, roots) = sphere_roots(r, center, radius);
+    let (lo, hi, roots) = roots_of::<L, true>(r, center, radius, active);
     let first = lo.gt(r.tmin) & lo.lt(tmax);
     let second = hi.gt(r.tmin) & hi.lt(tmax);
     let t = L::select(first, lo, hi);
@@ -381,6 +381,22 @@ pub fn sphere_lanes<L: Lanes>(
 /// crossings (`simd/glass_shadow.rs`).
 #[inline(always)]
 pub fn sphere_roots<L: Lanes>(r: &RayLanes<L>, center: Vec3, radius: f32) -> (L, L, u32) {
+    roots_of::<L, false>(r, center, radius, u32::MAX)
+}
+
+/// [`sphere_roots`]; with `SKIP`, where no lane of `active` has a real discriminant,
+/// zeros and no bits as soon as that is known: the square root and the two divisions
+/// after it are skipped, which changes no answer (every lane's bits would have been
+/// clear, and a caller reads a lane's roots only under its bit). The triangle test
+/// returns early the same way (`triangle_packet_by`, no lane inside). Rays of a lane
+/// group mostly pass a sphere by together (camera and reflected rays of one tile).
+#[inline(always)]
+fn roots_of<L: Lanes, const SKIP: bool>(
+    r: &RayLanes<L>,
+    center: Vec3,
+    radius: f32,
+    active: u32,
+) -> (L, L, u32) {
     let dot = |a: &[L; 3], b: &[L; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let f = [
         r.o[0] - L::splat(center.x),
@@ -394,6 +410,10 @@ pub fn sphere_roots<L: Lanes>(r: &RayLanes<L>, center: Vec3, radius: f32) -> (L,
     let r2 = L::splat(radius * radius);
     let disc = a * (r2 - dot(&l, &l));
     let real = L::splat(0.0).le(disc).bitmask(); // false for NaN, as in the scalar test
+    if SKIP && real & active == 0 {
+        let zero = L::splat(0.0);
+        return (zero, zero, 0);
+    }
     let c = dot(&f, &f) - r2;
     // copysign(sqrt(disc), b): the root is +0 or positive, so OR-ing b's sign bit in is exact.
     let q = b + (disc.sqrt() | (b & L::splat(-0.0)));

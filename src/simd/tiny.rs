@@ -597,6 +597,7 @@ impl TrianglePlane {
 mod tests {
     use super::*;
     use crate::geometry::{spawn_ray_to, triangle_point};
+    use crate::simd::kernels::sphere_roots;
     use crate::test_rng::xorshift64;
 
     /// The closest hit of `ray` by the scalar tests in the lane loop's order
@@ -758,6 +759,100 @@ mod tests {
         assert!(groups.iter().all(|&n| n > 100), "{groups:?}");
         assert!(shared_groups > 1000 && one_half > 2000);
         assert!(tri_hits > 10_000 && sphere_hits > 10_000);
+    }
+
+    /// Sphere lane groups whose every ray passes the sphere by (where `sphere_lanes`
+    /// stops after the discriminant, `kernels::roots_of`) and groups with a few lanes
+    /// grazing it: [`TinyGroup::closest`] and [`TinyGroup::any_sphere`] give every lane
+    /// the scalar test's answer ([`intersect_sphere`](crate::geometry::intersect_sphere):
+    /// same `t` bits, same sphere, same occlusion). Rays pass the sphere's centre at
+    /// `1 +- 1e-7 .. 1e-5` of its radius (discriminants of both signs near zero) or at
+    /// 1.5 and 4 radii, in groups of every lane or every other lane; both kinds of group
+    /// occur.
+    #[test]
+    fn sphere_groups_passing_by_together_get_the_scalar_answers() {
+        let mut next = xorshift64(0x2545_f491_4f6c_dd1d);
+        let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32;
+        let scales = [
+            1.0 - 1e-5f32,
+            1.0 - 1e-7,
+            1.0,
+            1.0 + 1e-7,
+            1.0 + 1e-5,
+            1.5,
+            4.0,
+        ];
+        let (mut none_real, mut some_hit, mut lanes) = (0usize, 0usize, 0usize);
+        for case in 0..3000 {
+            let r3 = |unit: &mut dyn FnMut() -> f32, s: f32| {
+                Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s
+            };
+            let center = r3(&mut unit, 10.0);
+            let radius = 0.1 + unit() * 3.0;
+            let spheres = [(center, radius), (center + r3(&mut unit, 20.0), radius)];
+            let eye = center + r3(&mut unit, 2.0).normalize_or(Vec3::Z) * radius * 6.0;
+            // Most groups pass both spheres by; one in four has a few lanes grazing one.
+            let grazing = case % 4 == 0;
+            let rays: Vec<Ray> = (0..64)
+                .map(|i| {
+                    let o = eye + r3(&mut unit, radius * 0.5);
+                    let to = center - o;
+                    let side = to.cross(r3(&mut unit, 2.0)).normalize_or(Vec3::X);
+                    let scale = if grazing && i % 5 == 0 {
+                        scales[i % 5]
+                    } else {
+                        scales[5 + i % 2]
+                    };
+                    // The offset in the plane through the centre at which the line
+                    // passes the centre at `radius * scale`.
+                    let (dist, pass) = (to.length(), radius * scale);
+                    Ray::new(
+                        o,
+                        to + side * (pass * dist / (dist * dist - pass * pass).sqrt()),
+                    )
+                })
+                .collect();
+            for key in 0..6 {
+                let ids: Vec<u32> = (0..rays.len() as u32)
+                    .filter(|&i| shear_key(&rays[i as usize]) == Some(key))
+                    .collect();
+                for chunk in ids.chunks(TINY_WIDTH) {
+                    let full = TinyGroup::new(&rays, chunk, key);
+                    // Every lane, or every other one.
+                    let mask = if case % 3 == 1 {
+                        full.mask & 0x5555
+                    } else {
+                        full.mask
+                    };
+                    if mask == 0 {
+                        continue;
+                    }
+                    let g = TinyGroup { mask, ..full };
+                    let (_, _, roots) = sphere_roots(&g.lanes, center, radius);
+                    none_real += (roots & mask == 0) as usize;
+                    let a = g.closest(&[], &spheres);
+                    let blocked = g.any_sphere(&spheres, mask);
+                    some_hit += (a.hit != 0) as usize;
+                    for (i, &id) in chunk.iter().enumerate() {
+                        if mask >> i & 1 == 0 {
+                            assert_eq!(a.hit >> i & 1, 0);
+                            continue;
+                        }
+                        let r = &rays[id as usize];
+                        let want = scalar_closest(r, &[], &spheres);
+                        let got = (a.hit >> i & 1 == 1).then(|| (a.t[i].to_bits(), a.prim[i]));
+                        assert_eq!(got, want.map(|(t, _, _, p)| (t.to_bits(), p)), "{r:?}");
+                        assert_eq!(blocked >> i & 1 == 1, want.is_some(), "{r:?}");
+                        lanes += 1;
+                    }
+                }
+            }
+        }
+        eprintln!("{lanes} lanes: {none_real} groups with no root, {some_hit} with a hit");
+        assert!(
+            none_real > 3000 && some_hit > 300,
+            "{none_real} / {some_hit}"
+        );
     }
 
     /// The axis-plane cull of [`TinyGroup::closest`] on the rays of a Whitted frame:
