@@ -399,9 +399,14 @@ fn render_tile(
                     let b = k / FULL;
                     let stop = ((b + 1) * FULL).min(end);
                     let indices = block_pixel_indices(blocks[b], width);
-                    ws.sinks
-                        .slot_pixel
-                        .extend_from_slice(&indices[k - b * FULL..stop - b * FULL]);
+                    let slot_pixel = &mut ws.sinks.slot_pixel;
+                    if stop - k == FULL {
+                        // The whole block: a copy of fixed length, inlined (a slice of
+                        // varying length is a call to memcpy per block).
+                        slot_pixel.extend_from_slice(&indices);
+                    } else {
+                        slot_pixel.extend_from_slice(&indices[k - b * FULL..stop - b * FULL]);
+                    }
                     k = stop;
                 }
             } else if rays_per_pixel == 1 {
