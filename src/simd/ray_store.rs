@@ -78,7 +78,9 @@ impl UniformRays {
 
     /// Appends rays `0..n` (at most 16) with directions `d` (each of the three at least
     /// `n` long) to `out`: ray `i` leaves the origin along `(d[0][i], d[1][i], d[2][i])`.
-    #[inline]
+    /// Inlined into the camera's block loop, so that the windows' constants can stay
+    /// in registers from block to block.
+    #[inline(always)]
     pub fn append(&self, d: [&[f32]; 3], n: usize, out: &mut Vec<Ray>) {
         #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
         if let (Ok(x), Ok(y), Ok(z)) = (
