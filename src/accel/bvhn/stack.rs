@@ -132,3 +132,41 @@ pub(super) fn insert_far_to_near<const N: usize>(
     order[j] = (c, key);
     *n += 1;
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simd::{F16, Lanes};
+
+    /// The packet stack gives back what was pushed, last in first out, each node with
+    /// its own lanes (every lane distinct), and nothing once empty.
+    #[test]
+    fn lane_stack_pops_pushes_in_reverse_with_their_lanes() {
+        let lanes = |k: u32| {
+            let mut a = [0.0f32; 16];
+            for (i, x) in a.iter_mut().enumerate() {
+                *x = (k * 16 + i as u32) as f32;
+            }
+            F16::from_array(a)
+        };
+        let mut s: LaneStack<F16, 8> = LaneStack::new();
+        assert!(s.pop().is_none());
+        for k in 0..8 {
+            s.push(100 + k, lanes(k));
+        }
+        for k in (5..8).rev() {
+            let (node, e) = s.pop().expect("pushed");
+            assert_eq!(node, 100 + k);
+            assert_eq!(e.to_array(), lanes(k).to_array());
+        }
+        s.push(7, lanes(40));
+        assert_eq!(
+            s.pop().map(|(n, e)| (n, e.to_array())),
+            Some((7, lanes(40).to_array()))
+        );
+        for k in (0..5).rev() {
+            assert_eq!(s.pop().map(|(n, _)| n), Some(100 + k));
+        }
+        assert!(s.pop().is_none());
+    }
+}
