@@ -4,7 +4,7 @@
 use super::node::{NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::packet_bounds::{PACKET_BOUNDS_MIN_NODES, PacketBounds};
 use super::packet_setup::{PacketRays, PacketSetup, for_each_bit, lane_query};
-use super::stack::{PACKET_STACK, Stack, insert_far_to_near};
+use super::stack::{LaneStack, PACKET_STACK, insert_far_to_near};
 use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
 use crate::geometry::{
@@ -78,11 +78,11 @@ where
 
     fn packet_closest_group<L: Lanes, R: LaneRays + ?Sized, const SHARED: bool>(
         &self,
-        p: &PacketRays<L>,
+        p: &PacketRays<'_, L>,
         rays: &R,
         mask: u32,
     ) -> PacketHits<L> {
-        let mut tmax = p.tmax;
+        let mut tmax = p.tmax();
         let mut res = PacketHits::<L> {
             t: L::splat(0.0).to_array(),
             u: L::splat(0.0).to_array(),
@@ -93,9 +93,9 @@ where
         let mut tu = L::splat(0.0);
         let mut tv = L::splat(0.0);
         let mut tprim = prim_lanes::<L>(u32::MAX);
-        let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
+        let mut stack: LaneStack<L, PACKET_STACK> = LaneStack::new();
         let mut cur = self.root;
-        let mut cur_enter = p.tmin;
+        let mut cur_enter = p.tmin();
         let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
             p,
             mask,
@@ -131,7 +131,9 @@ where
             } else if !is_leaf(cur) {
                 let node = &self.nodes[cur as usize];
                 let (planes, children) = (node.planes(), node.children());
-                let mut enters = [L::splat(0.0); N];
+                // Written for the children entered, read for those only: not
+                // zero-filled (512 bytes per 8-wide node visit with 16 lanes).
+                let mut enters = [const { std::mem::MaybeUninit::<L>::uninit() }; N];
                 let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
@@ -150,7 +152,7 @@ where
                     cand &= cand - 1;
                     let (enter, bits) = p.child_test::<SHARED, N>(&planes, c, tcull);
                     if bits & active != 0 {
-                        enters[c] = enter;
+                        enters[c].write(enter);
                         // insertion sort, far to near, by the representative lane's entry
                         let key = enter.to_array().as_ref()[rep];
                         insert_far_to_near(&mut order, &mut n, c, key);
@@ -162,12 +164,13 @@ where
                             self.prefetch_child(children[c]);
                         }
                     }
+                    // SAFETY: `order[..n]` lists the children whose `enters` were written.
                     for &(c, _) in &order[..n - 1] {
-                        stack.push((children[c], enters[c]));
+                        stack.push(children[c], unsafe { enters[c].assume_init() });
                     }
                     let c = order[n - 1].0;
                     cur = children[c];
-                    cur_enter = enters[c];
+                    cur_enter = unsafe { enters[c].assume_init() };
                     continue;
                 }
             } else if let Leaves::Scalar { prims, ids } = &self.leaves {
@@ -269,19 +272,19 @@ where
     /// Bits of the lanes in `mask` that hit something within their interval.
     fn packet_any_group<L: Lanes, R: LaneRays + ?Sized, const SHARED: bool>(
         &self,
-        p: &PacketRays<L>,
+        p: &PacketRays<'_, L>,
         rays: &R,
         mask: u32,
     ) -> u32 {
         let mut occluded = 0u32;
-        let mut stack: Stack<(u32, L), PACKET_STACK> = Stack::new();
+        let mut stack: LaneStack<L, PACKET_STACK> = LaneStack::new();
         let mut cur = self.root;
-        let mut cur_enter = p.tmin;
-        let tcull = p.tmax * L::splat(ROBUST_FAR_SCALE);
+        let mut cur_enter = p.tmin();
+        let tcull = p.tmax() * L::splat(ROBUST_FAR_SCALE);
         let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
             p,
             mask,
-            p.tmax,
+            p.tmax(),
             SHARED,
             self.nodes.len() >= PACKET_BOUNDS_MIN_NODES,
         );
@@ -316,7 +319,7 @@ where
                                     self.prefetch_child(children[c]);
                                     pushed = true;
                                 }
-                                stack.push((children[c], enter));
+                                stack.push(children[c], enter);
                             }
                         }
                     }
@@ -332,7 +335,7 @@ where
             } else if let Leaves::Scalar { prims, .. } = &self.leaves {
                 for k in leaf_range(cur) {
                     let live = active & !occluded;
-                    occluded |= prims.intersect_lanes(k, &p.lanes(), p.tmax, live, rays).3;
+                    occluded |= prims.intersect_lanes(k, &p.lanes(), p.tmax(), live, rays).3;
                     if active & !occluded == 0 {
                         break;
                     }
@@ -346,7 +349,7 @@ where
                         }
                         let live = active & !occluded;
                         let (_, _, _, bits, edge) =
-                            triangle_packet::<L, SHARED>(&p.shear, g, lane, p.tmax, live);
+                            triangle_packet::<L, SHARED>(&p.shear, g, lane, p.tmax(), live);
                         occluded |= bits;
                         if edge != 0 {
                             edge_lanes_scalar(

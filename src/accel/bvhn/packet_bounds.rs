@@ -84,7 +84,7 @@ impl<NL: Lanes> PacketBounds<NL> {
     /// Bounds over the lanes of `mask`, whose intervals end at most at `tmax`.
     #[inline(always)]
     pub(super) fn new<L: Lanes>(
-        p: &PacketRays<L>,
+        p: &PacketRays<'_, L>,
         mask: u32,
         tmax: L,
         shared: bool,
@@ -102,7 +102,7 @@ impl<NL: Lanes> PacketBounds<NL> {
         }
         let range = |v: L| lane_range(v, mask);
         let mut enabled = mask != 0;
-        let tmin = range(p.tmin).0;
+        let tmin = range(p.tmin()).0;
         // `round(x * scale)` is monotone in x, so the bound of the lanes' products is the
         // product of the bound (here and for the far reciprocals below).
         let tcull = range(tmax).1 * ROBUST_FAR_SCALE;
@@ -116,9 +116,9 @@ impl<NL: Lanes> PacketBounds<NL> {
             let (o_lo, o_hi) = if shared {
                 (p.shear.shared_origin[a], p.shear.shared_origin[a])
             } else {
-                range(p.o[a])
+                range(p.o()[a])
             };
-            let (i_lo, i_hi) = range(p.inv[a]);
+            let (i_lo, i_hi) = range(p.inv()[a]);
             let (f_lo, f_hi) = (i_lo * ROBUST_FAR_SCALE, i_hi * ROBUST_FAR_SCALE);
             enabled &= f_lo.is_finite() && f_hi.is_finite();
             // A positive reciprocal: distances grow with `p - o`, so the near distance
@@ -237,7 +237,7 @@ mod tests {
             let bounds = PacketBounds::<<Width<N> as NodeWidth>::L>::new(
                 &p,
                 mask,
-                p.tmax,
+                p.tmax(),
                 setup.shared_origin,
                 true,
             );

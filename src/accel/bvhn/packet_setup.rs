@@ -6,30 +6,54 @@ use crate::geometry::{LaneRays, ROBUST_FAR_SCALE, RayQuery};
 use crate::simd::Lanes;
 use crate::simd::kernels::{PacketShear, RayLanes};
 
-/// Packet traversal over lanes of type `L`.
-pub(super) struct PacketRays<L: Lanes> {
-    pub(super) o: [L; 3],
-    /// Directions, for scalar-leaf primitives' lane tests ([`lanes`](Self::lanes)).
-    pub(super) d: [L; 3],
-    pub(super) inv: [L; 3],
+/// Packet traversal over lanes of type `L`: one group's planes and shear, and the
+/// packet's lanes read in place from its [`PacketSetup`].
+///
+/// Why in place: a copy of the lanes here (as before) was compiled as 32-byte moves,
+/// and the traversal's first 64-byte loads of the copy (`tmin` and `tmax` at the
+/// group's start, the origins and reciprocals in the whole-packet bounds) could not be
+/// forwarded from those stores and waited for them to reach the cache: `perf annotate`
+/// of `examples/stream_profile bunny.obj bvh8-packet primary 80` (AVX-512) put 2.9 % of
+/// `packet_closest`'s samples on the load of `tmax`.
+pub(super) struct PacketRays<'a, L: Lanes> {
+    s: &'a PacketSetup<L>,
     pub(super) inv_far: [L; 3],
-    pub(super) tmin: L,
-    pub(super) tmax: L,
     pub(super) near: [usize; 3],
     pub(super) far: [usize; 3],
     pub(super) shear: PacketShear<L>,
 }
 
-impl<L: Lanes> PacketRays<L> {
+impl<L: Lanes> PacketRays<'_, L> {
+    /// Origins.
+    #[inline(always)]
+    pub(super) fn o(&self) -> &[L; 3] {
+        &self.s.o
+    }
+    /// Reciprocal directions.
+    #[inline(always)]
+    pub(super) fn inv(&self) -> &[L; 3] {
+        &self.s.inv
+    }
+    /// Starts of the rays' intervals.
+    #[inline(always)]
+    pub(super) fn tmin(&self) -> L {
+        self.s.tmin
+    }
+    /// Ends of the rays' intervals.
+    #[inline(always)]
+    pub(super) fn tmax(&self) -> L {
+        self.s.tmax
+    }
+
     /// Origins, directions and `tmin` as lanes, for scalar-leaf primitives' lane tests
     /// (built where a scalar leaf needs them: a copy kept in every packet's traversal
     /// state cost seven vector moves per group, and its reload stalled on store forwarding).
     #[inline(always)]
     pub(super) fn lanes(&self) -> RayLanes<L> {
         RayLanes {
-            o: self.o,
-            d: self.d,
-            tmin: self.tmin,
+            o: self.s.o,
+            d: self.s.d,
+            tmin: self.s.tmin,
         }
     }
 
@@ -50,13 +74,13 @@ impl<L: Lanes> PacketRays<L> {
             if SHARED {
                 L::splat(p[plane][c] - o[a])
             } else {
-                L::splat(p[plane][c]) - self.o[a]
+                L::splat(p[plane][c]) - self.s.o[a]
             }
         };
-        let d = |plane: usize, a: usize| rel(plane, a) * self.inv[a];
+        let d = |plane: usize, a: usize| rel(plane, a) * self.s.inv[a];
         let f = |plane: usize, a: usize| rel(plane, a) * self.inv_far[a];
-        let enter =
-            d(self.near[0], 0).maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.tmin)));
+        let enter = d(self.near[0], 0)
+            .maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.s.tmin)));
         let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tcull)));
         (enter, enter.le(exit).bitmask())
     }
@@ -93,7 +117,8 @@ pub(super) struct PacketSetup<L: Lanes> {
     pub(super) valid: u32,
     /// Every valid lane starts at the first valid lane's origin (camera rays).
     pub(super) shared_origin: bool,
-    pub(super) origin0: [f32; 3],
+    /// The first valid lane (0 if none).
+    first: usize,
     pub(super) groups: usize,
     pub(super) group_mask: [u32; 3],
     /// (octant sign bits, kz) per group.
@@ -138,14 +163,14 @@ impl<L: Lanes> PacketSetup<L> {
         let is_y = !is_x & az.le(ay).bitmask();
         let signs = [d[0].sign_bits(), d[1].sign_bits(), d[2].sign_bits()];
 
-        let (shared_origin, origin0) = match valid {
-            0 => (false, [0.0; 3]),
+        let (shared_origin, first) = match valid {
+            0 => (false, 0),
             v => {
                 let i0 = v.trailing_zeros() as usize;
                 let r0 = rays.lane_origin(i0);
                 let same = |k: usize| o[k].eq(L::splat(r0[k])).bitmask();
                 let same_bits = same(0) & same(1) & same(2);
-                (valid & !same_bits == 0, r0)
+                (valid & !same_bits == 0, i0)
             }
         };
         let mut s = PacketSetup {
@@ -156,7 +181,7 @@ impl<L: Lanes> PacketSetup<L> {
             tmax,
             valid,
             shared_origin,
-            origin0,
+            first,
             groups: 0,
             group_mask: [0; 3],
             group_key: [(0, 0); 3],
@@ -199,7 +224,7 @@ impl<L: Lanes> PacketSetup<L> {
 
     /// The traversal state of group `g`: its planes and watertight shear.
     #[inline(always)]
-    pub(super) fn group(&self, g: usize) -> PacketRays<L> {
+    pub(super) fn group(&self, g: usize) -> PacketRays<'_, L> {
         let (octant, kz) = self.group_key[g];
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
@@ -210,18 +235,21 @@ impl<L: Lanes> PacketSetup<L> {
         // setup's critical path).
         let sz = self.inv[kz];
         let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
+        // The first valid lane's origin, read from the lanes (each component on its
+        // own): the origin kept as three `f32` fields, written by three 4-byte stores
+        // and copied here by an 8-byte load that spanned two of them, waited for the
+        // stores to reach the cache (`perf annotate` of `examples/stream_profile
+        // bunny.obj bvh8-packet primary 80`, AVX-512: 4.7 % of `packet_closest`'s
+        // samples on that load).
+        let shared_origin = [0, 1, 2].map(|k| self.o[k].to_array().as_ref()[self.first]);
         PacketRays {
-            o: self.o,
-            d: self.d,
-            inv: self.inv,
+            s: self,
             inv_far: self.inv.map(|x| x * L::splat(ROBUST_FAR_SCALE)),
-            tmin: self.tmin,
-            tmax: self.tmax,
             near,
             far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
             shear: PacketShear {
                 o: self.o,
-                shared_origin: self.origin0,
+                shared_origin,
                 kx,
                 ky,
                 kz,

@@ -116,8 +116,8 @@ fn packet_bounds_never_cull_a_child_a_lane_enters() {
             let mask = setup.group_mask[g];
             let shared = setup.shared_origin;
             let bounds =
-                PacketBounds::<<Width<N> as NodeWidth>::L>::new(&p, mask, p.tmax, shared, true);
-            let tcull = p.tmax * Packet::splat(ROBUST_FAR_SCALE);
+                PacketBounds::<<Width<N> as NodeWidth>::L>::new(&p, mask, p.tmax(), shared, true);
+            let tcull = p.tmax() * Packet::splat(ROBUST_FAR_SCALE);
             for node in &bvh.nodes {
                 let cand = bounds.candidates(&node.planes, &node.children);
                 for c in 0..N {
