@@ -849,15 +849,7 @@ mod tests {
             up: Vec3::Y,
             vfov_deg: 38.0,
         };
-        let moving = CameraEffects {
-            shutter: [0.0, 1.0],
-            eye1: Some(Vec3::new(0.0, 2.0, 4.0)),
-            ..Default::default()
-        };
-        let ortho = CameraEffects {
-            ortho_height: Some(3.0),
-            ..Default::default()
-        };
+        let (moving, ortho) = moving_and_ortho();
         let (w, h) = (42, 30);
         // Every whole block of the image, then one reaching past its right edge.
         let mut blocks = whole_blocks(w, h);
@@ -933,15 +925,7 @@ mod tests {
             up: Vec3::Y,
             vfov_deg: 44.0,
         };
-        let moving = CameraEffects {
-            shutter: [0.0, 1.0],
-            eye1: Some(Vec3::new(0.0, 2.0, 4.0)),
-            ..Default::default()
-        };
-        let ortho = CameraEffects {
-            ortho_height: Some(3.0),
-            ..Default::default()
-        };
+        let (moving, ortho) = moving_and_ortho();
         let lens = CameraEffects {
             aperture: 0.2,
             aperture_blades: 0,
@@ -1058,6 +1042,21 @@ mod tests {
             }
         }
         assert_eq!(cases, 16);
+    }
+
+    /// A camera moving over the shutter and an orthographic one: the two effects that
+    /// send 4x4 blocks down the general (listed-pixel) path.
+    fn moving_and_ortho() -> (CameraEffects, CameraEffects) {
+        let moving = CameraEffects {
+            shutter: [0.0, 1.0],
+            eye1: Some(Vec3::new(0.0, 2.0, 4.0)),
+            ..Default::default()
+        };
+        let ortho = CameraEffects {
+            ortho_height: Some(3.0),
+            ..Default::default()
+        };
+        (moving, ortho)
     }
 
     /// The top-left corners of an image's whole 4x4 blocks, row by row.
