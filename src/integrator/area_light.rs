@@ -58,7 +58,8 @@
 //! Then (branch `area7`; images byte-identical on whitted_area64, area_lights and
 //! dof_area against the previous binary): the light points in lanes
 //! (`sampling::fill_2d_split`), the highlight's `pow` left out where it is zero for
-//! every lit lane (`simd::quad_samples::dark_below`), a power-of-two sample count
+//! every lit lane (`simd::quad_samples::dark_below`; since session 14 the higher cut
+//! `faint_below`, which keeps the products out of the subnormals), a power-of-two sample count
 //! multiplied in instead of divided, and the spheres tested once per sixteen samples
 //! with their roots reused by the glass settlement (`LaneOccluders::settle`).
 //! whitted_area64 512x384, 1 thread, AVX-512 (no hardware counters or valgrind

@@ -345,6 +345,18 @@ mod tests {
     use super::*;
     use crate::test_rng::xorshift64;
 
+    /// Sixteen rows of `K` vectors as `K` lane vectors: `v3(k)` holds row `i`'s `k`-th
+    /// vector in lane `i`.
+    fn column_lanes<const K: usize>(rows: &[[Vec3; K]]) -> impl Fn(usize) -> V3 {
+        let mut lanes = [[[0.0f32; 16]; 3]; K];
+        for (i, row) in rows.iter().enumerate() {
+            for (k, v) in row.iter().enumerate() {
+                (lanes[k][0][i], lanes[k][1][i], lanes[k][2][i]) = (v.x, v.y, v.z);
+            }
+        }
+        move |k| V3::load(&lanes[k][0], &lanes[k][1], &lanes[k][2])
+    }
+
     /// [`exact_reciprocal`] is offered for powers of two only, and where it is, the
     /// product is the quotient bit for bit: random finite values of every exponent,
     /// subnormals, the ends of the range (overflow and underflow), zeros, infinities;
@@ -417,13 +429,7 @@ mod tests {
                     [p, err, n]
                 })
                 .collect();
-            let mut lanes = [[0.0f32; 16]; 9];
-            for (i, row) in rows.iter().enumerate() {
-                for (k, v) in row.iter().enumerate() {
-                    (lanes[3 * k][i], lanes[3 * k + 1][i], lanes[3 * k + 2][i]) = (v.x, v.y, v.z);
-                }
-            }
-            let v3 = |k: usize| V3::load(&lanes[3 * k], &lanes[3 * k + 1], &lanes[3 * k + 2]);
+            let v3 = column_lanes(&rows);
             let (albedo, redo) = checker_albedo(&c, v3(0), v3(1), v3(2));
             for (i, [p, err, n]) in rows.iter().enumerate() {
                 let want = m.albedo_on_surface(*p, *err, *n);
@@ -478,13 +484,7 @@ mod tests {
                     [p, err, n, nq]
                 })
                 .collect();
-            let mut lanes = [[0.0f32; 16]; 12];
-            for (i, row) in rows.iter().enumerate() {
-                for (k, v) in row.iter().enumerate() {
-                    (lanes[3 * k][i], lanes[3 * k + 1][i], lanes[3 * k + 2][i]) = (v.x, v.y, v.z);
-                }
-            }
-            let v3 = |k: usize| V3::load(&lanes[3 * k], &lanes[3 * k + 1], &lanes[3 * k + 2]);
+            let v3 = column_lanes(&rows);
             let (p, err, n, nq) = (v3(0), v3(1), v3(2), v3(3));
             let (o, d, t) = spawn_ray_to_point(p, err, n, q, nq);
             let (o2, d2, t2) = spawn_ray_to(p, err, n, V3::splat(q), V3::splat(Vec3::ZERO), nq);

@@ -94,7 +94,7 @@ impl OriginBox {
 }
 
 /// The per-shading-point part of `quad_light`: the two possible shadow-ray origins,
-/// and where the highlight's power is zero ([`dark_below`]).
+/// and the cosine below which the highlight is left out ([`faint_below`]).
 #[derive(Clone, Copy, Debug)]
 pub struct QuadSamples {
     /// The origin where `(target - base) · n_g` is not negative, and where it is.
