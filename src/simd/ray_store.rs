@@ -26,8 +26,36 @@ const _: () = {
 /// eight long for the transposed path) to `out`, with `tmin = 0` and `tmax = inf`
 /// (as [`Ray::new`]): ray `i` is `origin (o[0][i], o[1][i], o[2][i])`, direction
 /// `d[..][i]`, time `t[i]`.
-#[inline]
+///
+/// With AVX-512 and sixteen-float arrays (the camera's packets), the sixteen rays are
+/// nine 64-byte windows, each merged from the seven arrays by four masked two-source
+/// permutes ([`avx512::store_lanes`]) where the two 8x8 transposes took 48 shuffles,
+/// 16 stores and 16 scalar time stores.
+#[inline(always)]
 pub fn append_rays(o: [&[f32]; 3], d: [&[f32]; 3], t: &[f32], n: usize, out: &mut Vec<Ray>) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    if let (Ok(o0), Ok(o1), Ok(o2), Ok(d0), Ok(d1), Ok(d2), Ok(tt)) = (
+        <&[f32; 16]>::try_from(o[0]),
+        <&[f32; 16]>::try_from(o[1]),
+        <&[f32; 16]>::try_from(o[2]),
+        <&[f32; 16]>::try_from(d[0]),
+        <&[f32; 16]>::try_from(d[1]),
+        <&[f32; 16]>::try_from(d[2]),
+        <&[f32; 16]>::try_from(t),
+    ) {
+        let n = n.min(16);
+        out.reserve(n);
+        // SAFETY: `reserve` made room for `n` more rays after `out.len()`;
+        // `store_lanes` writes exactly their `9 n` floats (masked stores past them),
+        // every byte of each ray (the layout is asserted above), before the length is
+        // raised over them; it reads the seven 16-float arrays.
+        unsafe {
+            let dst = out.as_mut_ptr().add(out.len()) as *mut f32;
+            avx512::store_lanes([o0, o1, o2, d0, d1, d2, tt], n, dst);
+            out.set_len(out.len() + n);
+        }
+        return;
+    }
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     {
         let len = o.iter().chain(&d).map(|a| a.len()).min().unwrap_or(0);
@@ -288,6 +316,78 @@ mod avx512 {
             }
         }
     }
+
+    /// The permute tables of [`store_lanes`], per window `k`: `BASE[k]` holds `tmin`
+    /// (zero) and `tmax` (infinity) in their lanes and, in every other lane, the
+    /// two-source permute index of its component within its pair of sources (pair 0:
+    /// origin x, y; 1: origin z, direction x; 2: direction y, z; 3: time, time), and
+    /// `PAIR[k][q]` is the mask of the lanes pair `q` fills.
+    const LANE_TABLES: ([[u32; 16]; 9], [[u16; 4]; 9]) = {
+        let mut base = [[0u32; 16]; 9];
+        let mut pair = [[0u16; 4]; 9];
+        let mut k = 0;
+        while k < 9 {
+            let mut lane = 0;
+            while lane < 16 {
+                let (r, c) = component(k, lane);
+                if c == 6 {
+                    base[k][lane] = 0f32.to_bits();
+                } else if c == 7 {
+                    base[k][lane] = f32::INFINITY.to_bits();
+                } else {
+                    // Component `c` of the seven sources (6 is the time, the 7th).
+                    let s = if c == 8 { 6 } else { c };
+                    base[k][lane] = (r + 16 * (s % 2)) as u32;
+                    pair[k][s / 2] |= 1 << lane;
+                }
+                lane += 1;
+            }
+            k += 1;
+        }
+        (base, pair)
+    };
+
+    /// Writes rays `0..n` (`n <= 16`) from `dst` on, nine floats each: ray `i` is
+    /// lane `i` of the sources origin x, y, z, direction x, y, z and time, with `tmin`
+    /// zero and `tmax` infinity. Each window starts from its constant lanes and index
+    /// lanes and takes each pair of sources in turn by a masked two-source permute
+    /// (`vpermi2ps`: lanes outside the mask keep the index operand's bits, the
+    /// constants and the indices of the pairs still to come).
+    ///
+    /// # Safety
+    /// `dst` must be valid for `9 n` floats.
+    #[inline(always)]
+    pub(super) unsafe fn store_lanes(s: [&[f32; 16]; 7], n: usize, dst: *mut f32) {
+        unsafe {
+            let ld = |a: &[f32; 16]| _mm512_loadu_ps(a.as_ptr());
+            let src = [
+                (ld(s[0]), ld(s[1])),
+                (ld(s[2]), ld(s[3])),
+                (ld(s[4]), ld(s[5])),
+                (ld(s[6]), ld(s[6])),
+            ];
+            let (base, pair) = &LANE_TABLES;
+            let floats = 9 * n;
+            for k in 0..9 {
+                let mut w = _mm512_loadu_si512(base[k].as_ptr().cast());
+                for (q, &(a, b)) in src.iter().enumerate() {
+                    if pair[k][q] != 0 {
+                        let v = _mm512_mask2_permutex2var_ps(a, w, pair[k][q], b);
+                        w = _mm512_castps_si512(v);
+                    }
+                }
+                let w = _mm512_castsi512_ps(w);
+                let p = dst.add(16 * k);
+                if floats >= 16 * (k + 1) {
+                    _mm512_storeu_ps(p, w);
+                } else {
+                    let left = floats.saturating_sub(16 * k);
+                    let mask = ((1u32 << left) - 1) as __mmask16;
+                    _mm512_mask_storeu_ps(p, mask, w);
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -330,6 +430,49 @@ mod tests {
                 assert_eq!(got.len(), 3 + n);
                 for (g, w) in got.iter().zip(&want) {
                     assert_eq!(bits(g), bits(w), "n {n}");
+                }
+            }
+        }
+    }
+
+    /// [`append_rays`] of sixteen-lane arrays (the AVX-512 window stores where the
+    /// build has them) gives the plain loop's rays bit for bit for every count 0..=16,
+    /// appended after rays already in the vector, with special values in every
+    /// component, the time included; and lanes past `n` are not written (the vector's
+    /// spare room keeps its sentinel).
+    #[test]
+    fn lane_stores_equal_the_plain_loop_and_stop_at_n() {
+        let mut rng = PixelRng::new(11, 17);
+        let mut draw = || component(&mut rng);
+        let bits = |r: &Ray| r.bits();
+        let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
+        for n in 0..=16 {
+            for _ in 0..20 {
+                let mut a = [[0.0f32; 16]; 7];
+                for c in a.iter_mut().flatten() {
+                    *c = draw();
+                }
+                let o = [&a[0][..], &a[1][..], &a[2][..]];
+                let d = [&a[3][..], &a[4][..], &a[5][..]];
+                let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
+                let mut want = vec![head; 2];
+                append_plain(o, d, &a[6], n, &mut want);
+                let mut got = vec![head; 2];
+                got.resize(2 + 16, sentinel);
+                got.truncate(2);
+                append_rays(o, d, &a[6], n, &mut got);
+                assert_eq!(got.len(), 2 + n);
+                for (g, w) in got.iter().zip(&want) {
+                    assert_eq!(bits(g), bits(w), "n {n}");
+                }
+                // SAFETY: the vector was 18 rays long before `truncate` and `append_rays`
+                // did not need to grow it (`reserve` of at most 16 more), so its
+                // capacity covers rays `2 + n..18`, still the sentinel's bytes unless
+                // the store wrote past ray `n`.
+                assert!(got.capacity() >= 18);
+                let spare = unsafe { std::slice::from_raw_parts(got.as_ptr().add(2 + n), 16 - n) };
+                for r in spare {
+                    assert_eq!(bits(r), bits(&sentinel), "n {n}: wrote past the rays");
                 }
             }
         }
