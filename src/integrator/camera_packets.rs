@@ -34,7 +34,8 @@ use super::SamplerKind;
 use super::camera_rays::{CameraSampler, PixelSamples};
 use super::polygon_aperture::PolygonAperture;
 use super::sampling::{
-    Dimension, PixelRng, decorrelate, decorrelate_pairs, fill_1d, fill_2d, fill_2d_split,
+    Dimension, PixelRng, append_2d_split, decorrelate, decorrelate_pairs, fill_1d, fill_2d,
+    fill_2d_split,
 };
 use crate::geometry::Ray;
 use crate::scene::{CameraFrame, LensFrame};
@@ -222,6 +223,19 @@ impl CameraSampler {
             && !(self.lens.eye_motion != glam::Vec3::ZERO && s1 > s0)
     }
 
+    /// Whether `block_rays` stages each pixel's whole lens set, in order, as its lens
+    /// points (a lens, no shutter, every eye sample rendered, a sampler that draws the
+    /// set: not Sobol), so that [`Self::draw_sets_split`] can append it to the staging
+    /// arrays itself.
+    fn direct_lens(&self) -> bool {
+        let p = self.plan;
+        p.lens > 0
+            && p.time == 0
+            && p.eye_begin == 0
+            && p.eye_end == p.eye
+            && p.sampler != SamplerKind::Sobol
+    }
+
     /// The rays through `pixels` at the one offset `(ox, oy)`, 16 image points at a
     /// time into lanes, at the shutter time `closed`.
     fn point_rays(
@@ -251,12 +265,16 @@ impl CameraSampler {
     /// the pixel's stream in the same order, the same points, but the lens set goes
     /// into two coordinate arrays (`st.lu`, `st.lv`, written in place for a square
     /// jittered set, [`fill_2d_split`]) and is shuffled there, pairs kept together.
+    /// With `direct` the lens set is appended to the staging arrays `st.lx`, `st.ly`
+    /// instead ([`append_2d_split`]) and shuffled there: what `block_rays` would copy
+    /// over when its rays take the whole set in order ([`Self::direct_lens`]).
     fn draw_sets_split(
         &self,
         seed: u64,
         index: u64,
         st: &mut CameraStaging,
         drawn: &mut EffectSamplesDrawn,
+        direct: bool,
     ) {
         let plan = self.plan;
         let (lens_n, time_n) = (plan.lens.max(1), plan.time.max(1));
@@ -270,7 +288,21 @@ impl CameraSampler {
             rng,
             &mut out.pixel_pos,
         );
-        if plan.lens > 0 {
+        if plan.lens > 0 && direct {
+            let n = plan.eye * lens_n;
+            let start = st.lx.len();
+            debug_assert_eq!(start, st.ly.len());
+            append_2d_split(
+                plan.sampler,
+                n,
+                Dimension::Lens,
+                rng,
+                (&mut st.lx, &mut st.ly),
+                &mut out.lens_pos,
+            );
+            decorrelate_pairs(plan.sampler, &mut st.lx[start..], &mut st.ly[start..], rng);
+            drawn.lens += n as u64;
+        } else if plan.lens > 0 {
             let n = plan.eye * lens_n;
             fill_2d_split(
                 plan.sampler,
@@ -511,6 +543,8 @@ impl CameraSampler {
         // (One ray per eye sample shares nothing: the general path.)
         let focused =
             plan.lens > 0 && self.rays_per_eye() > 1 && self.frame.ortho_half_height.is_none();
+        // The pixel's lens set drawn straight into `st.lx`, `st.ly`.
+        let direct = self.direct_lens();
         if constant {
             self.draw_constant(seed, st, drawn);
             if let [(ox, oy)] = st.constant[..] {
@@ -542,7 +576,7 @@ impl CameraSampler {
             let sobol = if plan.sampler == SamplerKind::Sobol {
                 self.pixel_sets(seed, index, &mut st.sets, drawn)
             } else {
-                self.draw_sets_split(seed, index, st, drawn);
+                self.draw_sets_split(seed, index, st, drawn, direct);
                 None
             };
             for e in plan.eye_begin as usize..plan.eye_end as usize {
@@ -565,7 +599,7 @@ impl CameraSampler {
                         st.px.resize(len, px);
                         st.py.resize(len, py);
                     }
-                    if plan.lens > 0 {
+                    if plan.lens > 0 && !direct {
                         match &sobol {
                             Some(s) => {
                                 for l in first..first + lens_n {
@@ -761,7 +795,11 @@ mod tests {
     /// Every sampler, both filters, with and without lens (polygonal and round, 2 to
     /// 16 points per eye sample), shutter, eye motion and orthographic projection, a
     /// sample range: the lane-parallel rays are the scalar
-    /// oracle's bit for bit, with the same offsets and the same samples counted.
+    /// oracle's bit for bit, with the same offsets and the same samples counted. The
+    /// lens sets of the samplers that draw them go straight into the staging arrays
+    /// (`direct_lens`) without a shutter and where every eye sample is rendered (eye 1
+    /// and 4; square sets of 9 and 16 points, lanes past a set's end among them), and
+    /// through `st.lu`, `st.lv` otherwise (a shutter, or the range 2..7 of 9).
     #[test]
     fn block_rays_equal_pixel_samples_ray_for_ray() {
         let cam = Camera {
