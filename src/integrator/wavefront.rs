@@ -398,15 +398,16 @@ fn render_tile(
                     let stop = ((b + 1) * FULL).min(end);
                     let slot_pixel = &mut ws.sinks.slot_pixel;
                     if stop - k == FULL {
-                        // The whole block, a row of four at a time from registers (a
-                        // slice of varying length is a call to memcpy per block; the
-                        // 16 indices built on the stack and copied stalled on the
-                        // loads).
+                        // The whole block, written in place with one length update
+                        // (`extend_array`; a slice of varying length is a call to
+                        // memcpy per block, the 16 indices built on the stack and
+                        // copied stalled on the loads, and four `extend_from_slice` of
+                        // a row each reloaded the length after every row's stores).
                         let (bx, by) = blocks[b];
-                        for r in 0..BLOCK {
-                            let row = (by + r) as u64 * width as u64 + bx as u64;
-                            slot_pixel.extend_from_slice(&[row, row + 1, row + 2, row + 3]);
-                        }
+                        let (w, bx, by) = (width as u64, bx as u64, by as u64);
+                        extend_array::<u64, FULL>(slot_pixel, |l| {
+                            (by + (l / 4) as u64) * w + bx + (l % 4) as u64
+                        });
                     } else {
                         let indices = block_pixel_indices(blocks[b], width);
                         slot_pixel.extend_from_slice(&indices[k - b * FULL..stop - b * FULL]);
@@ -466,11 +467,9 @@ fn render_tile(
                 }
                 ws.blocks.push((bx, by));
                 let (dx, dy) = (bx - tile.x0, by - tile.y0);
-                for r in 0..BLOCK {
-                    let row = (dy + r) * tile_w + dx;
-                    ws.unresolved
-                        .extend_from_slice(&[row, row + 1, row + 2, row + 3]);
-                }
+                extend_array::<u32, FULL>(&mut ws.unresolved, |l| {
+                    (dy + (l / 4) as u32) * tile_w + dx + (l % 4) as u32
+                });
                 if chunk_len(ws) >= chunk_pixels {
                     emit(ws, &mut stages, &mut t, false);
                 }
@@ -511,17 +510,36 @@ fn render_tile(
     }
 }
 
-/// Appends `n` zero accumulators to `acc`, 16 at a time from a constant: a copy of
-/// fixed length in vector stores. `resize(len + n, Vec3::ZERO)` wrote each 12-byte
-/// `Vec3` with two scalar stores, a third of the emit closure's perf samples (bunny
-/// 2048x2048, 1 thread).
+/// Appends `n` zero accumulators to `acc`: one fill of zero bytes (`memset`) and one
+/// length update. `resize(len + n, Vec3::ZERO)` wrote each 12-byte `Vec3` with two
+/// scalar stores, a third of the emit closure's perf samples (bunny 2048x2048, 1
+/// thread); a copy of 16 at a time from a constant updated the length after each.
 fn zero_slots(acc: &mut Vec<Vec3>, n: usize) {
-    const ZEROS: [Vec3; 16] = [Vec3::ZERO; 16];
     acc.reserve(n);
-    for _ in 0..n / ZEROS.len() {
-        acc.extend_from_slice(&ZEROS);
+    let spare = &mut acc.spare_capacity_mut()[..n];
+    // SAFETY: `spare` is `n` elements of the vector's spare capacity (`reserve`); all
+    // zero bytes are a valid `Vec3` (three `f32` zeros), so after the fill the `n`
+    // elements after the length are initialised and the length may cover them.
+    unsafe {
+        std::ptr::write_bytes(spare.as_mut_ptr(), 0, n);
+        acc.set_len(acc.len() + n);
     }
-    acc.extend_from_slice(&ZEROS[..n % ZEROS.len()]);
+}
+
+/// Appends `N` values to `v`, value `l` being `f(l)`, written in place into its spare
+/// capacity with one length update. Pushing them in a few `extend_from_slice` calls
+/// reloads the vector's length after each call's stores (they may alias it), a
+/// chain of store-to-load forwards; an array built on the stack and copied stalls
+/// the copy's vector loads on the array's scalar stores.
+#[inline(always)]
+fn extend_array<T: Copy, const N: usize>(v: &mut Vec<T>, f: impl Fn(usize) -> T) {
+    v.reserve(N);
+    let spare = &mut v.spare_capacity_mut()[..N];
+    for (l, s) in spare.iter_mut().enumerate() {
+        s.write(f(l));
+    }
+    // SAFETY: the loop above initialised the `N` elements after the length.
+    unsafe { v.set_len(v.len() + N) }
 }
 
 /// Traces the camera rays in `ws.camera` and every wave they cause, accumulating the
