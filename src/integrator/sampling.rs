@@ -397,13 +397,34 @@ pub fn decorrelate<T>(kind: SamplerKind, set: &mut [T], rng: &mut PixelRng) {
 
 /// [`decorrelate`] of a set of pairs held as two arrays: the same draws and the same
 /// swaps, applied to both.
+///
+/// A set of sixteen pairs (the camera's 16 lens points per eye sample) takes its swap
+/// targets from [`crate::simd::splitmix::shuffle_targets16`] (the fifteen draws in
+/// lanes) and swaps each pair as one 64-bit value (`u` in the low half, `v` in the
+/// high): the same draws, the same swaps, one swap per step where there were two.
 pub fn decorrelate_pairs(kind: SamplerKind, u: &mut [f32], v: &mut [f32], rng: &mut PixelRng) {
-    if matches!(kind, SamplerKind::Grid | SamplerKind::Jittered) {
-        shuffle_by(u.len().min(v.len()), rng, |i, j| {
-            u.swap(i, j);
-            v.swap(i, j);
-        });
+    if !matches!(kind, SamplerKind::Grid | SamplerKind::Jittered) {
+        return;
     }
+    if let (Ok(u), Ok(v)) = (
+        <&mut [f32; 16]>::try_from(&mut *u),
+        <&mut [f32; 16]>::try_from(&mut *v),
+    ) {
+        let targets = crate::simd::splitmix::shuffle_targets16(rng.state, 16);
+        rng.state = rng.state.wrapping_add(15u64.wrapping_mul(GOLDEN_GAMMA));
+        let mut p: [u64; 16] =
+            std::array::from_fn(|i| u[i].to_bits() as u64 | (v[i].to_bits() as u64) << 32);
+        for (m, &j) in targets[..15].iter().enumerate() {
+            p.swap(15 - m, j as usize & 15);
+        }
+        *u = p.map(|x| f32::from_bits(x as u32));
+        *v = p.map(|x| f32::from_bits((x >> 32) as u32));
+        return;
+    }
+    shuffle_by(u.len().min(v.len()), rng, |i, j| {
+        u.swap(i, j);
+        v.swap(i, j);
+    });
 }
 
 fn shuffle<T>(set: &mut [T], rng: &mut PixelRng) {
@@ -551,6 +572,40 @@ fn mix64_top24(z: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`decorrelate_pairs`] shuffles the two arrays as [`decorrelate`] shuffles the
+    /// pairs, and leaves the stream where it does: sixteen pairs (targets in lanes,
+    /// pairs swapped as 64-bit values) and other sizes (the scalar loop), every
+    /// pattern, NaN and signed zeros among the values.
+    #[test]
+    fn decorrelated_pairs_equal_decorrelated_sets() {
+        for &kind in SamplerKind::ALL {
+            for n in [0usize, 1, 2, 5, 15, 16, 17, 32] {
+                for seed in 0..50u64 {
+                    let mut pairs: Vec<(f32, f32)> = (0..n)
+                        .map(|i| (i as f32 * 0.25 - 1.0, -(i as f32) * 3.0 + 0.5))
+                        .collect();
+                    if n > 3 {
+                        pairs[1] = (f32::NAN, -0.0);
+                        pairs[2] = (0.0, f32::from_bits(0xffc0_0001));
+                    }
+                    let (mut u, mut v): (Vec<f32>, Vec<f32>) = pairs.iter().copied().unzip();
+                    let (mut a, mut b) = (PixelRng::new(seed, 3), PixelRng::new(seed, 3));
+                    decorrelate(kind, &mut pairs, &mut a);
+                    decorrelate_pairs(kind, &mut u, &mut v, &mut b);
+                    for (i, p) in pairs.iter().enumerate() {
+                        let got = (u[i].to_bits(), v[i].to_bits());
+                        assert_eq!(
+                            got,
+                            (p.0.to_bits(), p.1.to_bits()),
+                            "{kind} n {n} seed {seed} pair {i}"
+                        );
+                    }
+                    assert_eq!(a.state(), b.state(), "{kind} n {n} seed {seed}");
+                }
+            }
+        }
+    }
 
     /// [`append_2d_split`] appends [`fill_2d`]'s points (`centre_single` false) bit for
     /// bit after what the arrays hold, and leaves the stream where `fill_2d` does, for

@@ -420,16 +420,23 @@ fn render_tile(
                     .extend(pixels[i..end].iter().map(|p| p.2));
             } else {
                 // Pixel by pixel, a run of its rays at a time (a division per ray
-                // here was a quarter of this closure on whitted_blur16).
+                // here was a quarter of this closure on whitted_blur16), into the
+                // spare capacity with one length update for the whole run (an
+                // `extend` per pixel was an out-of-line call, the length reloaded
+                // after each).
+                let slot_pixel = &mut ws.sinks.slot_pixel;
+                slot_pixel.reserve(end - i);
+                let spare = &mut slot_pixel.spare_capacity_mut()[..end - i];
                 let mut k = i;
                 while k < end {
                     let p = k / rays_per_pixel;
                     let stop = ((p + 1) * rays_per_pixel).min(end);
-                    ws.sinks
-                        .slot_pixel
-                        .extend(std::iter::repeat_n(index(p), stop - k));
+                    spare[k - i..stop - i].fill(std::mem::MaybeUninit::new(index(p)));
                     k = stop;
                 }
+                // SAFETY: the runs above cover `spare`, the `end - i` elements after
+                // the length, without a gap (`k` goes from `i` to `end`).
+                unsafe { slot_pixel.set_len(slot_pixel.len() + (end - i)) };
             }
             i = end;
             if ws.camera.rays.len() >= batch {

@@ -97,11 +97,107 @@ unsafe fn unit_pairs16_avx512(state: u64, u: &mut [f32; 16], v: &mut [f32; 16]) 
     }
 }
 
+/// The swap targets of a Fisher-Yates shuffle of `n <= 16` items (the scalar
+/// oracle: `integrator::sampling::shuffle_by`, which draws `PixelRng::below(i + 1)` for
+/// `i` from `n - 1` down to 1): `j[m]` is the target of step `m`, item `i = n - 1 - m`,
+/// from draw `m` after `state` (the full mix, `next_u64`): `((draw >> 32) (n - m)) >>
+/// 32`. Entries `m >= n - 1` are unspecified. The caller advances its state by `γ`
+/// per step it takes.
+#[inline]
+pub fn shuffle_targets16(state: u64, n: u32) -> [u32; 16] {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
+    {
+        // SAFETY: AVX-512F/DQ are enabled at compile time; the stores write the
+        // 16-element array exactly (two 8-element halves).
+        unsafe { shuffle_targets16_avx512(state, n) }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512dq")))]
+    {
+        shuffle_targets16_scalar(state, n)
+    }
+}
+
+/// The scalar twin of [`shuffle_targets16`].
+#[inline]
+pub fn shuffle_targets16_scalar(state: u64, n: u32) -> [u32; 16] {
+    std::array::from_fn(|m| {
+        let mut z = state.wrapping_add((m as u64 + 1).wrapping_mul(GAMMA));
+        z = (z ^ (z >> 30)).wrapping_mul(MIX1);
+        z = (z ^ (z >> 27)).wrapping_mul(MIX2);
+        z ^= z >> 31;
+        (((z >> 32) * (n.wrapping_sub(m as u32)) as u64) >> 32) as u32
+    })
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
+#[inline]
+unsafe fn shuffle_targets16_avx512(state: u64, n: u32) -> [u32; 16] {
+    use std::arch::x86_64::*;
+    // `(m + 1) γ` and `m` for the sixteen steps.
+    const STEPS: [u64; 16] = {
+        let mut out = [0u64; 16];
+        let mut m = 0;
+        while m < 16 {
+            out[m] = (m as u64 + 1).wrapping_mul(GAMMA);
+            m += 1;
+        }
+        out
+    };
+    const IOTA: [u64; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15];
+    let mut out = [0u32; 16];
+    // SAFETY (whole body): the loads read the 16-element constant arrays in two halves,
+    // the stores write `out` in two halves; the target features are enabled.
+    unsafe {
+        let s = _mm512_set1_epi64(state as i64);
+        let c1 = _mm512_set1_epi64(MIX1 as i64);
+        let c2 = _mm512_set1_epi64(MIX2 as i64);
+        let nn = _mm512_set1_epi64(n as i64);
+        for h in 0..2 {
+            let mut z = _mm512_add_epi64(s, _mm512_loadu_si512(STEPS.as_ptr().add(8 * h).cast()));
+            z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<30>(z)), c1);
+            z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<27>(z)), c2);
+            z = _mm512_xor_si512(z, _mm512_srli_epi64::<31>(z));
+            // The bound `n - m` (its low 32 bits, as the scalar `u32` subtraction) times
+            // the draw's top 32 bits: `vpmuludq` multiplies the low 32 bits of each lane.
+            let bound = _mm512_sub_epi64(nn, _mm512_loadu_si512(IOTA.as_ptr().add(8 * h).cast()));
+            let j = _mm512_srli_epi64::<32>(_mm512_mul_epu32(_mm512_srli_epi64::<32>(z), bound));
+            _mm256_storeu_si256(out.as_mut_ptr().add(8 * h).cast(), _mm512_cvtepi64_epi32(j));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::integrator::sampling::PixelRng;
     use crate::test_rng::xorshift64;
+
+    /// [`shuffle_targets16`] (lanes where built with AVX-512DQ) and its scalar twin
+    /// against `PixelRng::below(i + 1)` drawn for `i` from `n - 1` down to 1, for every
+    /// `n` from 2 to 16, streams from random states and states near the wrap.
+    #[test]
+    fn shuffle_targets_are_the_streams_draws() {
+        let mut next = xorshift64(0x1f83_d9ab_fb41_bd6b);
+        for case in 0..5_000 {
+            let mut rng = PixelRng::new(next(), next());
+            if case % 97 == 0 {
+                rng =
+                    PixelRng::from_state(u64::MAX.wrapping_sub((next() % 64).wrapping_mul(GAMMA)));
+            }
+            for n in 2..=16u32 {
+                let state = rng.state();
+                let lanes = shuffle_targets16(state, n);
+                let scalar = shuffle_targets16_scalar(state, n);
+                let mut r = PixelRng::from_state(state);
+                for (m, i) in (1..n).rev().enumerate() {
+                    let want = r.below(i + 1);
+                    assert_eq!(lanes[m], want, "case {case} n {n} step {m}");
+                    assert_eq!(scalar[m], want, "case {case} n {n} scalar step {m}");
+                }
+            }
+        }
+    }
 
     /// [`unit_pairs16`] (the lane kernel where built with AVX-512DQ) and its scalar twin
     /// against 32 successive `PixelRng::next_f32` draws, bit for bit: streams started
