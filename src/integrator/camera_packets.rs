@@ -25,6 +25,12 @@
 //! draws too, then the points and the swaps: 280 samples against 275 for
 //! `fill_2d_split` and `decorrelate_pairs` (that version still divided per point for
 //! the stratum; it also had to restate `PixelRng`, private to sampling.rs). Left out.
+//! What did pay later (branch cam15, whitted_blur16 1024x768, 1 thread, 5 interleaved
+//! runs, load ~3 on 2 shared cores, camera stage 124/137/151 -> 115/125/145 ms
+//! min/median/max, with the slot_pixel runs written in place): only the shuffle's
+//! fifteen targets in lanes (`simd::splitmix::shuffle_targets16`) and each lens pair
+//! swapped as one 64-bit value (`decorrelate_pairs`), the points' draws staying in
+//! `fill_pairs16`.
 //!
 //! Measured (whitted_blur16, 16 lens samples per pixel, 1 thread, load ~7, 3
 //! interleaved runs): camera stage 1067-1759 ms (median 1327) against 2623-2986 (2939)
