@@ -633,7 +633,9 @@ fn trace_closest(
     hits: &mut Vec<Option<SceneHit>>,
     scratch: &mut BatchScratch,
 ) {
-    hits.clear();
+    // Every entry is written by `closest_hit_batch` (`None` first): the resize only
+    // sets the length (before: `clear` then `resize`, a `None` written over every
+    // entry twice per wave).
     hits.resize(queue.rays.len(), None);
     accel.closest_hit_batch(&queue.rays, hits, scratch);
     if let Some(scene) = cutouts {

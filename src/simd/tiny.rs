@@ -12,7 +12,6 @@
 //! structure, so a lane's closest hit is `BruteForce::closest_hit`'s, ties included.
 
 use super::kernels::{PacketShear, RayLanes, sphere_lanes, triangle_packet_corners};
-use super::lanes3::V3;
 use super::shadow_cull::AxisPlane;
 use super::{Lanes, PACKET_WIDTH, Packet};
 use crate::geometry::{Ray, RayQuery, dominant_axis, intersect_triangle};
@@ -242,12 +241,7 @@ impl TinyGroup {
         let index = |k: usize| TinyLanes::splat(f32::from_bits(k as u32));
         let mut prim = TinyLanes::splat(f32::from_bits(u32::MAX));
         let mut hit = 0u32;
-        let v3 = |a: [TinyLanes; 3]| V3 {
-            x: a[0],
-            y: a[1],
-            z: a[2],
-        };
-        let (o, d) = (v3(self.lanes.o), v3(self.lanes.d));
+        let (o, d) = (&self.lanes.o, &self.lanes.d);
         // The last axis plane met and its lanes to test (a quad's second triangle
         // shares its first one's plane).
         let mut last: Option<(AxisPlane, u32)> = None;
@@ -259,7 +253,7 @@ impl TinyGroup {
                 Some(p) => match last {
                     Some((q, live)) if q == p => live,
                     _ => {
-                        let live = self.mask & !p.leaving(&o, &d, self.mask);
+                        let live = self.mask & !p.leaving_lanes(o, d, self.mask);
                         last = Some((p, live));
                         live
                     }
@@ -598,6 +592,7 @@ mod tests {
     use super::*;
     use crate::geometry::{spawn_ray_to, triangle_point};
     use crate::simd::kernels::sphere_roots;
+    use crate::simd::lanes3::V3;
     use crate::test_rng::xorshift64;
 
     /// The closest hit of `ray` by the scalar tests in the lane loop's order
