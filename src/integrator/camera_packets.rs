@@ -1135,6 +1135,22 @@ mod tests {
         (moving, ortho)
     }
 
+    /// A plan of `n` eye samples per pixel with `filter`, no lens and no shutter.
+    fn pinhole_plan(sampler: SamplerKind, n: u32, filter: FilterKind) -> SamplePlan {
+        SamplePlan {
+            eye: n,
+            lens: 0,
+            time: 0,
+            shadow: 1,
+            glossy: 1,
+            environment: 0,
+            sampler,
+            filter,
+            eye_begin: 0,
+            eye_end: n,
+        }
+    }
+
     /// The top-left corners of an image's whole 4x4 blocks, row by row.
     fn whole_blocks(w: u32, h: u32) -> Vec<(u32, u32)> {
         (0..h / 4)
@@ -1188,18 +1204,7 @@ mod tests {
             let camera = CameraSampler {
                 frame: cam.frame(w, h).with_effects(&effects),
                 lens: LensFrame::new(&cam, &effects),
-                plan: SamplePlan {
-                    eye: n,
-                    lens: 0,
-                    time: 0,
-                    shadow: 1,
-                    glossy: 1,
-                    environment: 0,
-                    sampler,
-                    filter,
-                    eye_begin: 0,
-                    eye_end: n,
-                },
+                plan: pinhole_plan(sampler, n, filter),
             };
             assert!(camera.constant_offsets());
             let mut want_drawn = EffectSamplesDrawn::default();
@@ -1243,18 +1248,7 @@ mod tests {
                 let camera = CameraSampler {
                     frame: cam.frame(w, h).with_effects(&effects),
                     lens: LensFrame::new(&cam, &effects),
-                    plan: SamplePlan {
-                        eye: n,
-                        lens: 0,
-                        time: 0,
-                        shadow: 1,
-                        glossy: 1,
-                        environment: 0,
-                        sampler,
-                        filter: FilterKind::Box,
-                        eye_begin: 0,
-                        eye_end: n,
-                    },
+                    plan: pinhole_plan(sampler, n, FilterKind::Box),
                 };
                 assert!(camera.plain_pinhole());
                 let mut drawn = EffectSamplesDrawn::default();

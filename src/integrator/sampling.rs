@@ -261,38 +261,12 @@ pub fn fill_2d_split(
     (u, v): (&mut Vec<f32>, &mut Vec<f32>),
     pairs: &mut Vec<(f32, f32)>,
 ) {
+    // The points of `append_2d_split`, then zeros to whole lane groups.
     u.clear();
     v.clear();
-    let k = n.isqrt();
-    if kind == SamplerKind::Jittered && k * k == n {
-        // Written in place (no `push` per point: its capacity checks showed in perf
-        // on whitted_area64).
-        let len = (n as usize).next_multiple_of(16);
-        u.resize(len, 0.0);
-        v.resize(len, 0.0);
-        let inv = 1.0 / k as f32;
-        let (mut i, mut j) = (0u32, 0u32);
-        let (mut du, mut dv) = ([0.0f32; 16], [0.0f32; 16]);
-        for (b, (ub, vb)) in u
-            .chunks_exact_mut(16)
-            .zip(v.chunks_exact_mut(16))
-            .enumerate()
-        {
-            let m = (n as usize - 16 * b).min(16);
-            rng.fill_pairs16(m, &mut du, &mut dv);
-            let (lu, lv) = crate::simd::jittered::jittered_block((i, j, k), inv, &du, &dv);
-            ub[..m].copy_from_slice(&lu[..m]);
-            vb[..m].copy_from_slice(&lv[..m]);
-            let next = i + m as u32;
-            (i, j) = (next % k, j + next / k);
-        }
-    } else {
-        fill_2d(kind, n, dim, false, rng, pairs);
-        u.extend(pairs.iter().map(|p| p.0));
-        v.extend(pairs.iter().map(|p| p.1));
-        pad_to_lanes(u);
-        pad_to_lanes(v);
-    }
+    append_2d_split(kind, n, dim, rng, (u, v), pairs);
+    pad_to_lanes(u);
+    pad_to_lanes(v);
 }
 
 /// [`fill_2d`] (with `centre_single` false) appended to two arrays, `u` the first

@@ -407,6 +407,15 @@ mod tests {
         }
     }
 
+    /// Seven 16-lane arrays of `draw`n components: origin, direction and time lanes.
+    fn seven_lanes(draw: &mut impl FnMut() -> f32) -> [[f32; 16]; 7] {
+        let mut a = [[0.0f32; 16]; 7];
+        for c in a.iter_mut().flatten() {
+            *c = draw();
+        }
+        a
+    }
+
     /// The transposed stores give the plain loop's rays, bit for bit (NaN, signed
     /// zeros and infinities among the components), for every count 0..=16 of rays
     /// from 16-lane arrays, appended after rays already in the vector.
@@ -416,10 +425,7 @@ mod tests {
         let mut draw = || component(&mut rng);
         for n in 0..=16 {
             for _ in 0..20 {
-                let mut a = [[0.0f32; 16]; 7];
-                for c in a.iter_mut().flatten() {
-                    *c = draw();
-                }
+                let a = seven_lanes(&mut draw);
                 let o = [&a[0][..], &a[1][..], &a[2][..]];
                 let d = [&a[3][..], &a[4][..], &a[5][..]];
                 let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
@@ -448,10 +454,7 @@ mod tests {
         let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
         for n in 0..=16 {
             for _ in 0..20 {
-                let mut a = [[0.0f32; 16]; 7];
-                for c in a.iter_mut().flatten() {
-                    *c = draw();
-                }
+                let a = seven_lanes(&mut draw);
                 let o = [&a[0][..], &a[1][..], &a[2][..]];
                 let d = [&a[3][..], &a[4][..], &a[5][..]];
                 let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
