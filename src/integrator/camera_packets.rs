@@ -940,18 +940,7 @@ mod tests {
         ] {
             for sampler in [SamplerKind::Jittered, SamplerKind::Grid] {
                 for filter in [FilterKind::Box, FilterKind::Gaussian] {
-                    let plan = SamplePlan {
-                        eye: 1,
-                        lens: 0,
-                        time: 0,
-                        shadow: 1,
-                        glossy: 1,
-                        environment: 0,
-                        sampler,
-                        filter,
-                        eye_begin: 0,
-                        eye_end: 1,
-                    };
+                    let plan = pinhole_plan(sampler, 1, filter);
                     let camera = CameraSampler {
                         frame: cam.frame(w, h).with_effects(&effects),
                         lens: LensFrame::new(&cam, &effects),

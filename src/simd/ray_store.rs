@@ -429,14 +429,9 @@ mod tests {
                 let o = [&a[0][..], &a[1][..], &a[2][..]];
                 let d = [&a[3][..], &a[4][..], &a[5][..]];
                 let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
-                let (mut got, mut want) = (vec![head; 3], vec![head; 3]);
-                append_rays(o, d, &a[6], n, &mut got);
+                let mut want = vec![head; 3];
                 append_plain(o, d, &a[6], n, &mut want);
-                let bits = |r: &Ray| r.bits();
-                assert_eq!(got.len(), 3 + n);
-                for (g, w) in got.iter().zip(&want) {
-                    assert_eq!(bits(g), bits(w), "n {n}");
-                }
+                assert_stores(&want, n, |got| append_rays(o, d, &a[6], n, got));
             }
         }
     }
@@ -450,8 +445,6 @@ mod tests {
     fn lane_stores_equal_the_plain_loop_and_stop_at_n() {
         let mut rng = PixelRng::new(11, 17);
         let mut draw = || component(&mut rng);
-        let bits = |r: &Ray| r.bits();
-        let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
         for n in 0..=16 {
             for _ in 0..20 {
                 let a = seven_lanes(&mut draw);
@@ -460,24 +453,35 @@ mod tests {
                 let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
                 let mut want = vec![head; 2];
                 append_plain(o, d, &a[6], n, &mut want);
-                let mut got = vec![head; 2];
-                got.resize(2 + 16, sentinel);
-                got.truncate(2);
-                append_rays(o, d, &a[6], n, &mut got);
-                assert_eq!(got.len(), 2 + n);
-                for (g, w) in got.iter().zip(&want) {
-                    assert_eq!(bits(g), bits(w), "n {n}");
-                }
-                // SAFETY: the vector was 18 rays long before `truncate` and `append_rays`
-                // did not need to grow it (`reserve` of at most 16 more), so its
-                // capacity covers rays `2 + n..18`, still the sentinel's bytes unless
-                // the store wrote past ray `n`.
-                assert!(got.capacity() >= 18);
-                let spare = unsafe { std::slice::from_raw_parts(got.as_ptr().add(2 + n), 16 - n) };
-                for r in spare {
-                    assert_eq!(bits(r), bits(&sentinel), "n {n}: wrote past the rays");
-                }
+                assert_stores(&want, n, |got| append_rays(o, d, &a[6], n, got));
             }
+        }
+    }
+
+    /// Runs `store` on a vector holding `want`'s first rays (all but its last `n`)
+    /// whose spare room for sixteen more holds a sentinel, then asserts that it
+    /// appended `want`'s last `n` rays bit for bit and left the room past them holding
+    /// the sentinel (no lane past `n` written).
+    fn assert_stores(want: &[Ray], n: usize, store: impl FnOnce(&mut Vec<Ray>)) {
+        let head = want.len() - n;
+        let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
+        // Room for all sixteen, filled with the sentinel, then cut back.
+        let mut got = want[..head].to_vec();
+        got.resize(head + 16, sentinel);
+        got.truncate(head);
+        store(&mut got);
+        assert_eq!(got.len(), head + n);
+        for (g, w) in got.iter().zip(want) {
+            assert_eq!(g.bits(), w.bits(), "n {n}");
+        }
+        // SAFETY: the vector was `head + 16` rays long before `truncate` and the store
+        // did not need to grow it (`reserve` of at most 16 more), so its capacity
+        // covers rays `head + n..head + 16`, still the sentinel's bytes unless the
+        // store wrote past ray `n`.
+        assert!(got.capacity() >= head + 16);
+        let spare = unsafe { std::slice::from_raw_parts(got.as_ptr().add(head + n), 16 - n) };
+        for r in spare {
+            assert_eq!(r.bits(), sentinel.bits(), "n {n}: wrote past the rays");
         }
     }
 
@@ -490,8 +494,6 @@ mod tests {
     fn uniform_rays_equal_the_plain_loop() {
         let mut rng = PixelRng::new(5, 13);
         let mut draw = || component(&mut rng);
-        let bits = |r: &Ray| r.bits();
-        let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
         for n in 0..=16 {
             for _ in 0..20 {
                 let origin = glam::Vec3::new(draw(), draw(), draw());
@@ -511,22 +513,7 @@ mod tests {
                     n,
                     &mut want,
                 );
-                // Room for all sixteen, filled with the sentinel, then cut back.
-                let mut got = vec![head; 3];
-                got.resize(3 + 16, sentinel);
-                got.truncate(3);
-                store.append([&d[0], &d[1], &d[2]], n, &mut got);
-                assert_eq!(got.len(), 3 + n);
-                for (g, w) in got.iter().zip(&want) {
-                    assert_eq!(bits(g), bits(w), "n {n}");
-                }
-                // SAFETY: the vector was 19 rays long before `truncate`, so its
-                // capacity covers rays `3 + n..19`, still the sentinel's bytes unless
-                // the store wrote past ray `n`.
-                let spare = unsafe { std::slice::from_raw_parts(got.as_ptr().add(3 + n), 16 - n) };
-                for r in spare {
-                    assert_eq!(bits(r), bits(&sentinel), "n {n}: wrote past the rays");
-                }
+                assert_stores(&want, n, |got| store.append([&d[0], &d[1], &d[2]], n, got));
             }
         }
     }
