@@ -384,8 +384,7 @@ pub fn decorrelate_pairs(kind: SamplerKind, u: &mut [f32], v: &mut [f32], rng: &
         <&mut [f32; 16]>::try_from(&mut *u),
         <&mut [f32; 16]>::try_from(&mut *v),
     ) {
-        let targets = crate::simd::splitmix::shuffle_targets16(rng.state, 16);
-        rng.state = rng.state.wrapping_add(15u64.wrapping_mul(GOLDEN_GAMMA));
+        let targets = rng.shuffle_targets16();
         let mut p: [u64; 16] =
             std::array::from_fn(|i| u[i].to_bits() as u64 | (v[i].to_bits() as u64) << 32);
         for (m, &j) in targets[..15].iter().enumerate() {
@@ -502,6 +501,17 @@ impl PixelRng {
         self.state = self
             .state
             .wrapping_add((2 * m as u64).wrapping_mul(GOLDEN_GAMMA));
+    }
+
+    /// The swap targets of a Fisher-Yates shuffle of sixteen items, as [`shuffle_by`]
+    /// draws them (`below(i + 1)` for `i` from 15 down to 1: entry `m` is step `m`'s),
+    /// computed in lanes where the build has AVX-512DQ (`simd::splitmix`, bit for bit);
+    /// the stream advances by the fifteen draws. Entry 15 is unspecified.
+    #[inline]
+    pub fn shuffle_targets16(&mut self) -> [u32; 16] {
+        let targets = crate::simd::splitmix::shuffle_targets16(self.state, 16);
+        self.state = self.state.wrapping_add(15u64.wrapping_mul(GOLDEN_GAMMA));
+        targets
     }
 
     /// The stream's state (what the next draw advances from).

@@ -18,13 +18,40 @@ const GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
 const MIX1: u64 = 0xbf58_476d_1ce4_e5b9;
 const MIX2: u64 = 0x94d0_49bb_1331_11eb;
 
+/// The output function of draw `m` (0-based) after the state `state`, before its last
+/// step (`z ^ (z >> 31)`, which changes bits 0..32 only).
+#[inline(always)]
+fn mix_unfinished(state: u64, m: u64) -> u64 {
+    let mut z = state.wrapping_add((m + 1).wrapping_mul(GAMMA));
+    z = (z ^ (z >> 30)).wrapping_mul(MIX1);
+    (z ^ (z >> 27)).wrapping_mul(MIX2)
+}
+
+/// [`mix_unfinished`] in eight 64-bit lanes: `offsets` holds `(m + 1) γ` per lane.
+///
+/// # Safety
+/// `offsets` must be valid for eight `u64`; AVX-512F/DQ enabled.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
+#[inline(always)]
+unsafe fn mix_unfinished8(
+    state: std::arch::x86_64::__m512i,
+    offsets: *const u64,
+) -> std::arch::x86_64::__m512i {
+    use std::arch::x86_64::*;
+    // SAFETY: the caller's contract.
+    unsafe {
+        let c1 = _mm512_set1_epi64(MIX1 as i64);
+        let c2 = _mm512_set1_epi64(MIX2 as i64);
+        let mut z = _mm512_add_epi64(state, _mm512_loadu_si512(offsets.cast()));
+        z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<30>(z)), c1);
+        _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<27>(z)), c2)
+    }
+}
+
 /// Draw `m` (0-based) of 32 after the state `state`, as `next_f32` makes it.
 #[inline(always)]
 fn draw(state: u64, m: u64) -> f32 {
-    let mut z = state.wrapping_add((m + 1).wrapping_mul(GAMMA));
-    z = (z ^ (z >> 30)).wrapping_mul(MIX1);
-    z = (z ^ (z >> 27)).wrapping_mul(MIX2);
-    (z >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+    (mix_unfinished(state, m) >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
 /// The 32 draws after `state`, deinterleaved: `u[p]` is draw `2p`, `v[p]` draw
@@ -79,13 +106,9 @@ unsafe fn unit_pairs16_avx512(state: u64, u: &mut [f32; 16], v: &mut [f32; 16]) 
     // the stores write `u` and `v` in two halves; the target features are enabled.
     unsafe {
         let s = _mm512_set1_epi64(state as i64);
-        let c1 = _mm512_set1_epi64(MIX1 as i64);
-        let c2 = _mm512_set1_epi64(MIX2 as i64);
         let scale = _mm256_set1_ps(1.0 / (1u32 << 24) as f32);
         let eight = |offsets: *const u64, out: *mut f32| {
-            let mut z = _mm512_add_epi64(s, _mm512_loadu_si512(offsets.cast()));
-            z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<30>(z)), c1);
-            z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<27>(z)), c2);
+            let z = mix_unfinished8(s, offsets);
             // 24 bits: exact in f32, as `(z >> 40) as f32`; the scale is a power of two.
             let f = _mm512_cvtepi64_ps(_mm512_srli_epi64::<40>(z));
             _mm256_storeu_ps(out, _mm256_mul_ps(f, scale));
@@ -121,9 +144,7 @@ pub fn shuffle_targets16(state: u64, n: u32) -> [u32; 16] {
 #[inline]
 pub fn shuffle_targets16_scalar(state: u64, n: u32) -> [u32; 16] {
     std::array::from_fn(|m| {
-        let mut z = state.wrapping_add((m as u64 + 1).wrapping_mul(GAMMA));
-        z = (z ^ (z >> 30)).wrapping_mul(MIX1);
-        z = (z ^ (z >> 27)).wrapping_mul(MIX2);
+        let mut z = mix_unfinished(state, m as u64);
         z ^= z >> 31;
         (((z >> 32) * (n.wrapping_sub(m as u32)) as u64) >> 32) as u32
     })
@@ -149,13 +170,9 @@ unsafe fn shuffle_targets16_avx512(state: u64, n: u32) -> [u32; 16] {
     // the stores write `out` in two halves; the target features are enabled.
     unsafe {
         let s = _mm512_set1_epi64(state as i64);
-        let c1 = _mm512_set1_epi64(MIX1 as i64);
-        let c2 = _mm512_set1_epi64(MIX2 as i64);
         let nn = _mm512_set1_epi64(n as i64);
         for h in 0..2 {
-            let mut z = _mm512_add_epi64(s, _mm512_loadu_si512(STEPS.as_ptr().add(8 * h).cast()));
-            z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<30>(z)), c1);
-            z = _mm512_mullo_epi64(_mm512_xor_si512(z, _mm512_srli_epi64::<27>(z)), c2);
+            let mut z = mix_unfinished8(s, STEPS.as_ptr().add(8 * h));
             z = _mm512_xor_si512(z, _mm512_srli_epi64::<31>(z));
             // The bound `n - m` (its low 32 bits, as the scalar `u32` subtraction) times
             // the draw's top 32 bits: `vpmuludq` multiplies the low 32 bits of each lane.
