@@ -252,10 +252,17 @@ impl Protocol {
                         tile_pixels(tx, ty, w, h, &mut pixels);
                         rays.clear();
                         let mut n = 0;
+                        // A whole tile: four 4x4 blocks in row order (`tile_pixels`).
+                        let whole = pixels.len() == 64;
                         for (b, block) in pixels.chunks(16).enumerate() {
                             let local = |(x, y): (u32, u32)| ((y - y0) * w + x) as usize;
                             if workload == Workload::Primary {
-                                self.camera.packet_into(block, &mut packets[b]);
+                                if whole {
+                                    let (bx, by) = block[0];
+                                    self.camera.block_into(bx, by, &mut packets[b]);
+                                } else {
+                                    self.camera.packet_into(block, &mut packets[b]);
+                                }
                                 if !soa {
                                     rays.extend((0..block.len()).map(|k| packets[b].ray(k)));
                                 }
