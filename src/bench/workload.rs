@@ -102,8 +102,43 @@ impl BenchCamera {
             xs[k] = x as f32;
             ys[k] = y as f32;
         }
+        self.lanes_into(F16::from_array(xs), F16::from_array(ys), packet);
+        packet.len = pixels.len();
+    }
+
+    /// The camera rays of the 4x4 pixel block whose top left pixel is `(x0, y0)`, in
+    /// row order (the order of [`packet_into`](Self::packet_into)'s pixels in the
+    /// bench's tiles), written into `packet` (all sixteen lanes): the same rays.
+    ///
+    /// Why: the pixel coordinates are made in lanes (`x0 + column`, exact for integers
+    /// below 2^24) instead of being stored lane by lane and read back whole, a load that
+    /// cannot be forwarded from the sixteen stores and waits for them; and, inlined,
+    /// a tile's four blocks form independent chains of divisions and square roots that
+    /// overlap (`packet_into`, called per block, was 7 % of a bunny primary pass,
+    /// mostly waiting at the end of that chain; `perf annotate` of
+    /// `examples/stream_profile bunny.obj bvh8-packet primary 30`, AVX-512).
+    #[inline(always)]
+    pub fn block_into(&self, x0: u32, y0: u32, packet: &mut RayPacket) {
+        use crate::simd::{F16, Lanes};
+        const COLUMN: [f32; 16] = [
+            0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0,
+        ];
+        const ROW: [f32; 16] = [
+            0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0,
+        ];
         let s = F16::splat;
-        let (x, y) = (F16::from_array(xs), F16::from_array(ys));
+        let x = s(x0 as f32) + F16::from_array(COLUMN);
+        let y = s(y0 as f32) + F16::from_array(ROW);
+        self.lanes_into(x, y, packet);
+        packet.len = 16;
+    }
+
+    /// The rays through pixel coordinates `x`, `y` (integers as `f32`) into `packet`'s
+    /// sixteen lanes (`len` left to the caller).
+    #[inline(always)]
+    fn lanes_into(&self, x: crate::simd::F16, y: crate::simd::F16, packet: &mut RayPacket) {
+        use crate::simd::F16;
+        let s = F16::splat;
         let sx = (s(2.0) * (x + s(0.5)) / s(self.width as f32) - s(1.0))
             * s(self.tan_half)
             * s(self.aspect);
@@ -118,7 +153,6 @@ impl BenchCamera {
         packet.tmin = [0.0; 16];
         packet.tmax = [f32::INFINITY; 16];
         packet.time = [0.0; 16];
-        packet.len = pixels.len();
     }
 
     /// Camera rays of `pixels` appended to `out` (see [`packet_into`](Self::packet_into)).
@@ -188,6 +222,32 @@ mod tests {
         for (r, &(x, y)) in rays.iter().zip(&pixels) {
             assert_eq!(r.dir, cam.dir(x, y), "pixel ({x}, {y})");
             assert_eq!(r.origin, cam.eye);
+        }
+    }
+
+    /// A full 4x4 block's rays made from its corner (`block_into`) are those of its
+    /// sixteen pixels (`packet_into`), bit for bit, every field of every lane.
+    #[test]
+    fn block_rays_are_the_pixels_rays() {
+        let positions = [Vec3::new(-1.0, 0.2, -0.5), Vec3::new(0.7, 1.9, 0.3)];
+        let cam = BenchCamera::new(&Framing::new(&positions), 1024, 768);
+        let bits = |p: &RayPacket| {
+            let mut v = vec![p.len as u32];
+            for a in 0..3 {
+                v.extend(p.origin[a].map(f32::to_bits));
+                v.extend(p.dir[a].map(f32::to_bits));
+            }
+            for lanes in [&p.tmin, &p.tmax, &p.time] {
+                v.extend(lanes.map(f32::to_bits));
+            }
+            v
+        };
+        for (x0, y0) in [(0, 0), (4, 0), (508, 380), (1020, 764), (16, 200), (800, 8)] {
+            let pixels: Vec<(u32, u32)> = (0..16).map(|k| (x0 + k % 4, y0 + k / 4)).collect();
+            let (mut a, mut b) = (RayPacket::default(), RayPacket::default());
+            cam.packet_into(&pixels, &mut a);
+            cam.block_into(x0, y0, &mut b);
+            assert_eq!(bits(&b), bits(&a), "block at ({x0}, {y0})");
         }
     }
 }
