@@ -468,16 +468,29 @@ impl CameraSampler {
         let closed = Packet::splat(self.lens.shutter[0]);
         let store = uniform_rays(&mut st.uniform, self.frame.eye, self.lens.shutter[0]);
         let terms = st.terms.update(&self.frame, (ox, oy));
-        for (k, &b) in blocks.iter().enumerate() {
+        // Room for every block first, each block's rays written into it, and the
+        // length raised once at the end ([`UniformRays::write16`]; appending block by
+        // block kept the vector's length in memory, a store and a reload per block).
+        rays.reserve(blocks.len() * PACKET_WIDTH);
+        let mut done = 0;
+        for (&b, dst) in blocks
+            .iter()
+            .zip(rays.spare_capacity_mut().chunks_exact_mut(PACKET_WIDTH))
+        {
             let Some(lanes) = terms.block(self.frame.eye, b, closed) else {
-                return k;
+                break;
             };
             // The eye and the open time in every lane: only the directions differ
             // ([`UniformRays`]).
             let d = lanes.dir.map(|l| l.to_array());
-            store.append([&d[0], &d[1], &d[2]], PACKET_WIDTH, rays);
+            let dst: &mut [_; PACKET_WIDTH] = dst.try_into().expect("chunks of 16");
+            store.write16([&d[0], &d[1], &d[2]], dst);
+            done += 1;
         }
-        blocks.len()
+        // SAFETY: `write16` initialised the first `done` chunks of 16 rays of the
+        // spare capacity, the `done * 16` rays after the length, without a gap.
+        unsafe { rays.set_len(rays.len() + done * PACKET_WIDTH) };
+        done
     }
 
     /// [`block_rays`](CameraSampler::block_rays) of pixels given as whole 4x4 blocks

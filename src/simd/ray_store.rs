@@ -137,6 +137,58 @@ impl UniformRays {
         ];
         append_rays(o, d, &self.time, n, out);
     }
+
+    /// Writes the sixteen rays with directions `d` into `dst`, ray `i` leaving the
+    /// origin along `(d[0][i], d[1][i], d[2][i])`: the rays [`Self::append`] appends
+    /// for `n = 16`, into memory the caller owns, so that a loop over many blocks
+    /// (`CameraSampler::pinhole_blocks`) raises its vector's length once, not per
+    /// block. Appending per block stored the length after each block and loaded it
+    /// again (with the capacity) for the next: the vector's header may alias the
+    /// rays' stores, so it stayed in memory (perf annotate, bunny 4096x4096, 1 thread:
+    /// `addq` to the length in every block of the camera's hottest loop).
+    #[inline(always)]
+    pub fn write16(&self, d: [&[f32; 16]; 3], dst: &mut [std::mem::MaybeUninit<Ray>; 16]) {
+        let out = dst.as_mut_ptr() as *mut f32;
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+        // SAFETY: `dst` is sixteen rays, the `9 * 16` floats `store` writes (every
+        // byte of each ray, layout asserted above); it reads the three arrays of `d`.
+        unsafe {
+            self.windows.store(d, 16, out);
+        }
+        #[cfg(all(
+            target_arch = "x86_64",
+            target_feature = "avx2",
+            not(target_feature = "avx512f")
+        ))]
+        // SAFETY: `dst` is sixteen rays, the `9 * 16` floats `store` writes; every
+        // array it reads (origin, direction, time) is sixteen floats, two groups of
+        // eight.
+        unsafe {
+            let o = [
+                &self.origin[0][..],
+                &self.origin[1][..],
+                &self.origin[2][..],
+            ];
+            avx2::store(o, [&d[0][..], &d[1][..], &d[2][..]], &self.time, 16, out);
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+        {
+            let _ = out;
+            for (i, r) in dst.iter_mut().enumerate() {
+                r.write(Ray {
+                    origin: glam::Vec3::new(
+                        self.origin[0][i],
+                        self.origin[1][i],
+                        self.origin[2][i],
+                    ),
+                    dir: glam::Vec3::new(d[0][i], d[1][i], d[2][i]),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                    time: self.time[i],
+                });
+            }
+        }
+    }
 }
 
 /// The plain loop: the reference of the transposed path (and the path without AVX2).
@@ -514,6 +566,41 @@ mod tests {
                     &mut want,
                 );
                 assert_stores(&want, n, |got| store.append([&d[0], &d[1], &d[2]], n, got));
+            }
+        }
+    }
+
+    /// [`UniformRays::write16`] writes the plain loop's sixteen rays bit for bit (the
+    /// same special values among directions, origin and time), every byte of the
+    /// sixteen (a sentinel-filled array, compared whole).
+    #[test]
+    fn uniform_rays_write16_equals_the_plain_loop() {
+        let mut rng = PixelRng::new(7, 21);
+        let mut draw = || component(&mut rng);
+        for _ in 0..50 {
+            let origin = glam::Vec3::new(draw(), draw(), draw());
+            let time = draw();
+            let store = UniformRays::new(origin, time);
+            let mut d = [[0.0f32; 16]; 3];
+            for c in d.iter_mut().flatten() {
+                *c = draw();
+            }
+            let o = origin.to_array().map(|c| [c; 16]);
+            let mut want = Vec::new();
+            append_plain(
+                [&o[0][..], &o[1][..], &o[2][..]],
+                [&d[0][..], &d[1][..], &d[2][..]],
+                &[time; 16],
+                16,
+                &mut want,
+            );
+            let sentinel = Ray::new(glam::Vec3::splat(7.0), glam::Vec3::Y);
+            let mut got = [std::mem::MaybeUninit::new(sentinel); 16];
+            store.write16([&d[0], &d[1], &d[2]], &mut got);
+            for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+                // SAFETY: every element was initialised (the sentinel, then the store).
+                let g = unsafe { g.assume_init() };
+                assert_eq!(g.bits(), w.bits(), "ray {i}");
             }
         }
     }
