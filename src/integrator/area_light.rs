@@ -68,7 +68,7 @@
 //! 294 -> 270 (light points), -> 258 (highlight cut, sample count), -> 246 (spheres).
 
 use super::hit_batch::HitBatch;
-use super::path_keys::{HitSet, hit_points_split};
+use super::path_keys::{HitSet, hit_points_append, hit_points_split};
 use super::sampling::PixelRng;
 use super::shade_stage::{LanePaths, Sinks, push_shadow};
 use super::shader::Shader;
@@ -386,12 +386,18 @@ pub(crate) fn shade_quads_packed(
             points.near[i],
             quad,
         );
-        let (mut u, mut v) = ([0.0f32; 16], [0.0f32; 16]);
+        // Each point's light points appended at its block of lanes (zeros between and
+        // after, as `hit_points_split` pads).
+        let (u, v) = (&mut points.u, &mut points.v);
+        u.clear();
+        v.clear();
         for (j, h) in pts.iter().enumerate() {
             if left >> j & 1 == 1 {
                 continue;
             }
-            hit_points_split(
+            u.resize(j * stride, 0.0);
+            v.resize(j * stride, 0.0);
+            hit_points_append(
                 plan.sampler,
                 HitSet {
                     seed: shader.seed,
@@ -402,23 +408,16 @@ pub(crate) fn shade_quads_packed(
                 },
                 samples as u32,
                 &mut streams[j],
-                (&mut points.u, &mut points.v),
+                (u, v),
                 &mut points.pairs,
             );
-            let o = j * stride;
-            u[o..o + samples].copy_from_slice(&points.u[..samples]);
-            v[o..o + samples].copy_from_slice(&points.v[..samples]);
             sinks.drawn.light += samples as u64;
         }
-        let sl = fast.lanes(
-            &s,
-            &hl,
-            quad,
-            Packet::new(u),
-            Packet::new(v),
-            samples as f32,
-            active,
-        );
+        u.resize(16, 0.0);
+        v.resize(16, 0.0);
+        let lane = |a: &[f32]| Packet::new(a[..16].try_into().expect("16 lanes"));
+        let (u, v) = (lane(u), lane(v));
+        let sl = fast.lanes(&s, &hl, quad, u, v, samples as f32, active);
         let live = sl.mask & 0xffff;
         if live == 0 {
             continue;
