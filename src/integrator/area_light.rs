@@ -66,6 +66,40 @@
 //! AVX-512 support on that machine, so process CPU time, `perf stat -e task-clock`,
 //! 5 runs interleaved, load 9-18 on 2 cores): 298 -> 246 ms (-17 %), per step
 //! 294 -> 270 (light points), -> 258 (highlight cut, sample count), -> 246 (spheres).
+//!
+//! Then (branch `area16`; images byte-identical against the previous binary on 71
+//! PNGs: the 13 shipped scenes at 320x240, whitted_area64 at 512x384 and blur16 at
+//! 256x192, dof_area with `--spp 1` and 1, 2, 3, 4, 5, 8, 9 and 16 light samples, with
+//! the Sobol and the jittered sampler, at 1 and 2 threads, whitted_area64 and
+//! area_lights at 1 to 9 samples): with few samples per point (dof_area: 4)
+//! `shade_quads` ran its lane groups with 4 of 16 lanes live and paid its per-point
+//! work (splats, origins, cull, reduction) per 4 samples. [`shade_quads_packed`]
+//! puts the samples of up to `16 / stride` consecutive points of a material group in
+//! one lane group (`stride`: the sample count rounded up to a power of two, for 1 to 8
+//! samples): per-lane surfaces (`simd::quad_samples::spread`), each point's stream
+//! drawn light by light as before, the settlement per point
+//! (`LaneOccluders::settle_segments`: the plane sides of each point's origin, the
+//! triangle test from a shared origin where a key group is one point's, the spheres
+//! of the union of the points' cull bits, exact as the cull is), and the sums per
+//! block in `reduce_add`'s tree (`block_sums`): every point's sum is `shade_quads`'
+//! bit for bit (test `packed_points_match_one_point_at_a_time_bit_for_bit`).
+//! dof_area 320x240, 1 thread, AVX-512, 5 rounds interleaved with the previous binary,
+//! flock'd, load 4.6-5.4 on 2 cores (min / median / max ms): render 325/384/457 ->
+//! 227/265/363, shade 265/321/352 -> 173/204/234, task-clock 322/358/397 ->
+//! 226/246/322; Mitsuba 3.9 (llvm_ad_rgb, 1 thread) in the same run, warm render
+//! 179/194/203. whitted_area64 (64 samples, not packed) unchanged within the noise.
+//! Per step (3 rounds each, noisier): the pack with its lanes built lane by lane
+//! from the batch (`from_fn` per lane) was no faster (those gathers ~20 % of the
+//! samples, perf); with `spread`, shade median ~262 -> ~191. Then, each 5-10 % of
+//! `shade_quads_packed`'s samples in perf and not timed apart: plane sides as
+//! bitmasks (`SegmentSides`), `may_cull` only for planes without a twin and not yet
+//! set, `block_sums` by permutes, the light points appended at their blocks
+//! (`path_keys::hit_points_append`). Left (perf of this build, dof_area):
+//! `shade_quads_packed` 38 % (the light samples' divisions, the per-point `may_cull`
+//! and setup), the light points' draws ~12 % (`append_2d_split`, `fill_2d`,
+//! `decorrelate_pairs`: sampling.rs), `TrianglePlane::side` 5 % (one exact f64 side
+//! test per point's origin; a box of a group's origins tested at its two extreme
+//! corners would serve 16 points, not tried), the camera's `block_rays` 7.5 %.
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_append, hit_points_split};
