@@ -88,6 +88,10 @@
 //! 227/265/363, shade 265/321/352 -> 173/204/234, task-clock 322/358/397 ->
 //! 226/246/322; Mitsuba 3.9 (llvm_ad_rgb, 1 thread) in the same run, warm render
 //! 179/194/203. whitted_area64 (64 samples, not packed) unchanged within the noise.
+//! A second such run of the final build (load 2.8-3.7): dof_area render 314/355/478 ->
+//! 203/237/291, shade 264/301/404 -> 152/179/229, task-clock 332/373/500 ->
+//! 220/255/313; whitted_area64 render 269/298/414 -> 255/266/378; Mitsuba warm
+//! 182/185/226: still above Mitsuba's (median 237 against 185).
 //! Per step (3 rounds each, noisier): the pack with its lanes built lane by lane
 //! from the batch (`from_fn` per lane) was no faster (those gathers ~20 % of the
 //! samples, perf); with `spread`, shade median ~262 -> ~191. Then, each 5-10 % of
