@@ -66,17 +66,55 @@
 //! AVX-512 support on that machine, so process CPU time, `perf stat -e task-clock`,
 //! 5 runs interleaved, load 9-18 on 2 cores): 298 -> 246 ms (-17 %), per step
 //! 294 -> 270 (light points), -> 258 (highlight cut, sample count), -> 246 (spheres).
+//!
+//! Then (branch `area16`; images byte-identical against the previous binary on 71
+//! PNGs: the 13 shipped scenes at 320x240, whitted_area64 at 512x384 and blur16 at
+//! 256x192, dof_area with `--spp 1` and 1, 2, 3, 4, 5, 8, 9 and 16 light samples, with
+//! the Sobol and the jittered sampler, at 1 and 2 threads, whitted_area64 and
+//! area_lights at 1 to 9 samples): with few samples per point (dof_area: 4)
+//! `shade_quads` ran its lane groups with 4 of 16 lanes live and paid its per-point
+//! work (splats, origins, cull, reduction) per 4 samples. [`shade_quads_packed`]
+//! puts the samples of up to `16 / stride` consecutive points of a material group in
+//! one lane group (`stride`: the sample count rounded up to a power of two, for 1 to 8
+//! samples): per-lane surfaces (`simd::quad_samples::spread`), each point's stream
+//! drawn light by light as before, the settlement per point
+//! (`LaneOccluders::settle_segments`: the plane sides of each point's origin, the
+//! triangle test from a shared origin where a key group is one point's, the spheres
+//! of the union of the points' cull bits, exact as the cull is), and the sums per
+//! block in `reduce_add`'s tree (`block_sums`): every point's sum is `shade_quads`'
+//! bit for bit (test `packed_points_match_one_point_at_a_time_bit_for_bit`).
+//! dof_area 320x240, 1 thread, AVX-512, 5 rounds interleaved with the previous binary,
+//! flock'd, load 4.6-5.4 on 2 cores (min / median / max ms): render 325/384/457 ->
+//! 227/265/363, shade 265/321/352 -> 173/204/234, task-clock 322/358/397 ->
+//! 226/246/322; Mitsuba 3.9 (llvm_ad_rgb, 1 thread) in the same run, warm render
+//! 179/194/203. whitted_area64 (64 samples, not packed) unchanged within the noise.
+//! A second such run of the final build (load 2.8-3.7): dof_area render 314/355/478 ->
+//! 203/237/291, shade 264/301/404 -> 152/179/229, task-clock 332/373/500 ->
+//! 220/255/313; whitted_area64 render 269/298/414 -> 255/266/378; Mitsuba warm
+//! 182/185/226: still above Mitsuba's (median 237 against 185).
+//! Per step (3 rounds each, noisier): the pack with its lanes built lane by lane
+//! from the batch (`from_fn` per lane) was no faster (those gathers ~20 % of the
+//! samples, perf); with `spread`, shade median ~262 -> ~191. Then, each 5-10 % of
+//! `shade_quads_packed`'s samples in perf and not timed apart: plane sides as
+//! bitmasks (`SegmentSides`), `may_cull` only for planes without a twin and not yet
+//! set, `block_sums` by permutes, the light points appended at their blocks
+//! (`path_keys::hit_points_append`). Left (perf of this build, dof_area):
+//! `shade_quads_packed` 38 % (the light samples' divisions, the per-point `may_cull`
+//! and setup), the light points' draws ~12 % (`append_2d_split`, `fill_2d`,
+//! `decorrelate_pairs`: sampling.rs), `TrianglePlane::side` 5 % (one exact f64 side
+//! test per point's origin; a box of a group's origins tested at its two extreme
+//! corners would serve 16 points, not tried), the camera's `block_rays` 7.5 %.
 
 use super::hit_batch::HitBatch;
-use super::path_keys::{HitSet, hit_points_split};
+use super::path_keys::{HitSet, hit_points_append, hit_points_split};
 use super::sampling::PixelRng;
 use super::shade_stage::{LanePaths, Sinks, push_shadow};
 use super::shader::Shader;
 use super::sobol::SobolDim;
-use super::tiny_shadow::{GroupCull, LaneOccluders};
+use super::tiny_shadow::{GroupCull, LaneOccluders, SegmentSides, SphereBits};
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
 use crate::simd::lanes3::V3;
-use crate::simd::quad_samples::{OriginBox, QuadSamples};
+use crate::simd::quad_samples::{OriginBox, QuadSamples, block_sums, spread};
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
 
@@ -104,9 +142,24 @@ pub(crate) struct LightPoints {
     pub v: Vec<f32>,
     /// The sphere culls of the current lane group of shading points.
     pub cull: GroupCull,
+    /// Of a pack ([`shade_quads_packed`]): per light the union of its points' sphere
+    /// bits, and per point and light (point-major) its sum where a sample passed.
+    near: Vec<SphereBits>,
+    pub totals: Vec<Option<Vec3>>,
+}
+
+/// The lanes per shading point of a pack ([`shade_quads_packed`]) for `samples` light
+/// samples per point and light: `samples` rounded up to a power of two, where that
+/// leaves room for two points or more in a lane group (1 to 8 samples); `None` where
+/// one point fills the lanes (or has none), and [`shade_quads`] serves.
+pub(crate) fn pack_stride(samples: u32) -> Option<usize> {
+    (1..=8)
+        .contains(&samples)
+        .then(|| samples.next_power_of_two() as usize)
 }
 
 /// One shading point of a lane-shaded material group.
+#[derive(Clone, Copy)]
 pub(crate) struct ShadingPoint<'a> {
     pub batch: &'a HitBatch,
     /// Its index in the batch.
@@ -249,6 +302,188 @@ pub(crate) fn shade_quads(
             sinks.acc[h.slot as usize] += total;
         }
     }
+}
+
+/// [`shade_quads`] for the shading points `pts` (consecutive hits of one material
+/// group, at most `16 / stride`, `stride` from [`pack_stride`]) in one lane group per
+/// light: point `j`'s samples in lanes `j stride ..`, drawn from its stream
+/// `streams[j]` (light by light, as `shade_quads` draws them), settled by
+/// `LaneOccluders::settle_segments` and summed per block ([`block_sums`]): every lane
+/// computes what `shade_quads` computes in its point's lane group, and each point's
+/// sum is `shade_quads`' bit for bit. The sums go to `points.totals` (index
+/// `j * lights + i`, `None` where `shade_quads` adds nothing) for the caller to add in
+/// point order; the counts go to `sinks`. Returns the bits of the points left to
+/// `shade_quads` (whose geometric normal `QuadSamples::new` refuses).
+///
+/// Why: with 4 samples per point (dof_area) `shade_quads` ran its lane groups with 4 of
+/// 16 lanes live, and paid the per-point work (splats, origins, the reduction of the
+/// sum) per 4 samples.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn shade_quads_packed(
+    shader: &Shader,
+    quads: &QuadLights,
+    occluders: &LaneOccluders,
+    pts: &[ShadingPoint],
+    stride: usize,
+    streams: &mut [Option<PixelRng>],
+    sinks: &mut Sinks,
+    points: &mut LightPoints,
+) -> u32 {
+    let n = pts.len();
+    debug_assert!(n >= 1 && n * stride <= 16 && streams.len() >= n);
+    debug_assert!((1..=stride).contains(&(shader.plan.shadow as usize)));
+    let samples = shader.plan.shadow as usize;
+    let lights = quads.lights.len();
+    points.totals.clear();
+    points.totals.resize(n * lights, None);
+    let (batch, k0) = (pts[0].batch, pts[0].k);
+    debug_assert!(pts.iter().enumerate().all(|(j, h)| h.k == k0 + j));
+    // Lane `l` holds point `l / stride` (the last point's values past the pack): the
+    // points' values (point `j` in lane `j`, as loaded from the batch) spread over
+    // their blocks.
+    let shift = stride.trailing_zeros();
+    let from: [u32; 16] = std::array::from_fn(|l| (l as u32 >> shift).min(n as u32 - 1));
+    let spread3 = |v: V3| V3 {
+        x: spread(v.x, &from),
+        y: spread(v.y, &from),
+        z: spread(v.z, &from),
+    };
+    let gather = |a: &super::hit_batch::Soa3| spread3(a.lanes(k0));
+    let per_point = |f: fn(&ShadingPoint) -> Vec3| {
+        let (mut x, mut y, mut z) = ([0.0f32; 16], [0.0f32; 16], [0.0f32; 16]);
+        for (j, h) in pts.iter().enumerate() {
+            let v = f(h);
+            (x[j & 15], y[j & 15], z[j & 15]) = (v.x, v.y, v.z);
+        }
+        spread3(V3::load(&x, &y, &z))
+    };
+    let smooth = Packet::new(batch.smooth[k0..k0 + 16].try_into().expect("16 lanes"));
+    let s = SurfaceLanes {
+        p: gather(&batch.p),
+        p_error: gather(&batch.p_error),
+        ng: gather(&batch.ng),
+        ns: gather(&batch.ns),
+        base: gather(&batch.base),
+        smooth: spread(smooth, &from),
+        wo: gather(&batch.dir).negated(),
+        albedo: per_point(|h| h.albedo),
+    };
+    let lane_weight = per_point(|h| h.weight);
+    let hl = pts[0].hl;
+    let (fast, accepted) = QuadSamples::per_lane(&s, &hl);
+    let one = (1u32 << samples) - 1;
+    let mut left = 0u32;
+    let mut active = 0u32;
+    let mut segments = [(0u32, SegmentSides::default()); 16];
+    for (j, segment) in segments.iter_mut().enumerate().take(n) {
+        let lanes = one << (j * stride);
+        if accepted >> (j * stride) & 1 == 1 {
+            active |= lanes;
+            segment.0 = lanes;
+        } else {
+            left |= 1 << j;
+        }
+    }
+    // The spheres near each light's segments: per point from the cull of its lane
+    // group of hits (`GroupCull`, as `shade_quads`), united per light.
+    points.near.clear();
+    points.near.resize(lights, occluders.sphere_bits(None));
+    let mut first = true;
+    for (j, h) in pts.iter().enumerate() {
+        if left >> j & 1 == 1 {
+            continue;
+        }
+        let k = h.k;
+        let culled = points.cull.bits(
+            occluders,
+            fast.origins_at(j * stride),
+            &quads.lights,
+            || {
+                let end = batch.ray.len().max(k + 1);
+                let live = (1u32 << (end - k).min(16)) - 1;
+                let lanes = |a: &super::hit_batch::Soa3| a.lanes(k);
+                let (b, e, n) = (lanes(&batch.base), lanes(&batch.p_error), lanes(&batch.ng));
+                OriginBox::of_group(b, e, n, live)
+            },
+        );
+        for (i, near) in points.near.iter_mut().enumerate() {
+            let bits = if culled {
+                points.cull.near(i)
+            } else {
+                occluders.sphere_bits(None)
+            };
+            *near = if first { bits } else { near.union(bits) };
+        }
+        first = false;
+    }
+    let plan = &shader.plan;
+    let bases: [Vec3; 16] = std::array::from_fn(|j| batch.base.get(k0 + j.min(n - 1)));
+    for (i, (index, quad)) in quads.lights.iter().enumerate() {
+        let near = occluders.spheres_near_points(
+            (0..n).filter(|&j| left >> j & 1 == 0).map(|j| bases[j]),
+            points.near[i],
+            quad,
+        );
+        // Each point's light points appended at its block of lanes (zeros between and
+        // after, as `hit_points_split` pads).
+        let (u, v) = (&mut points.u, &mut points.v);
+        u.clear();
+        v.clear();
+        for (j, h) in pts.iter().enumerate() {
+            if left >> j & 1 == 1 {
+                continue;
+            }
+            u.resize(j * stride, 0.0);
+            v.resize(j * stride, 0.0);
+            hit_points_append(
+                plan.sampler,
+                HitSet {
+                    seed: shader.seed,
+                    pixel: h.pixel,
+                    path: h.path,
+                    depth: h.depth,
+                    dim: SobolDim::Light(*index),
+                },
+                samples as u32,
+                &mut streams[j],
+                (u, v),
+                &mut points.pairs,
+            );
+            sinks.drawn.light += samples as u64;
+        }
+        u.resize(16, 0.0);
+        v.resize(16, 0.0);
+        let lane = |a: &[f32]| Packet::new(a[..16].try_into().expect("16 lanes"));
+        let (u, v) = (lane(u), lane(v));
+        let sl = fast.lanes(&s, &hl, quad, u, v, samples as f32, active);
+        let live = sl.mask & 0xffff;
+        if live == 0 {
+            continue;
+        }
+        sinks.rays.shadow += live.count_ones() as u64;
+        let settled =
+            occluders.settle_segments(sl.origin, sl.dir, sl.tmax, live, &near, &mut segments[..n]);
+        sinks.rays.transmitted_shadow += settled.settled.count_ones() as u64;
+        if settled.pass == 0 {
+            continue;
+        }
+        // `shade_quads`' lane sum (one lane group: zero plus the passing terms), then
+        // its `reduce_add` per point.
+        let c = sl.contribution.times(lane_weight).times(settled.factor);
+        let pass = <Packet as Lanes>::mask_from_bits(settled.pass);
+        let sum = V3::splat(Vec3::ZERO).plus(V3::select(pass, c, V3::splat(Vec3::ZERO)));
+        let (x, y, z) = (
+            block_sums(sum.x, stride),
+            block_sums(sum.y, stride),
+            block_sums(sum.z, stride),
+        );
+        for j in 0..n {
+            if settled.pass >> (j * stride) & one != 0 {
+                points.totals[j * lights + i] = Some(Vec3::new(x[j], y[j], z[j]));
+            }
+        }
+    }
+    left
 }
 
 #[cfg(test)]
@@ -397,6 +632,159 @@ mod tests {
                 path,
             )
         })
+    }
+
+    /// Packed shading points ([`shade_quads_packed`], the sums added in point order)
+    /// against one point at a time ([`shade_quads`]) on the same hits, bit for bit:
+    /// every camera sample's sum, the ray counts, the samples drawn and each point's
+    /// stream after its draws; 1, 2, 3, 4 and 8 samples at their pack widths, 9 and
+    /// 16 in packs of one point (lane-group width) and 64 left to `shade_quads`, at
+    /// the first hits and two waves of children (mirror and glass), the Sobol sampler
+    /// (the pixel's sequence at first hits) and the jittered one (the point's own
+    /// stream), transmitted shadows through the glass sphere on and off. Each lane's
+    /// albedo and weight differ from its neighbours'.
+    #[test]
+    fn packed_points_match_one_point_at_a_time_bit_for_bit() {
+        use crate::integrator::SamplerKind;
+        let scene = scene();
+        let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
+        let (mut packs, mut lit_samples, mut points_compared) = (0usize, 0u64, 0usize);
+        for samples in [1u32, 2, 3, 4, 8, 9, 16, 64] {
+            for sampler in [SamplerKind::Sobol, SamplerKind::Jittered] {
+                for through_glass in [true, false] {
+                    let name = format!("{samples} samples, {sampler}, glass {through_glass}");
+                    let mut opts = RenderOptions::from_scene(&scene);
+                    opts.samples.shadow = samples;
+                    opts.transmitted_shadows = through_glass;
+                    let mut plan = SamplePlan::new(&scene, &opts);
+                    plan.sampler = sampler;
+                    let shader = Shader::new(&scene, &opts, plan);
+                    let filter = ShadowFilter::new(&scene, through_glass, accel.kind);
+                    let occluders = LaneOccluders::new(&accel, filter.as_ref());
+                    let lanes = LaneShading::new(&scene, plan.environment)
+                        .expect("lane path")
+                        .with_area_occluders(occluders);
+                    let quads = lanes.quads();
+                    let occluders = quads.occluders.as_ref().expect("a tiny scene");
+                    let stride = pack_stride(samples).unwrap_or(16);
+                    let (w, h) = (24, 18);
+                    let frame = scene.camera.frame(w, h);
+                    let queue = RayQueue::pixel_centres(&frame, w, h, plan.first_path());
+                    let slots = (w * h) as usize;
+                    let mut scratch = ShadeScratch::default();
+                    let mut queues = vec![(queue, 0)];
+                    while let Some((queue, depth)) = queues.pop() {
+                        let hits: Vec<_> =
+                            queue.rays.iter().map(|r| accel.closest_hit(r)).collect();
+                        let (mut a, mut b) = (sinks(&scene, slots), sinks(&scene, slots));
+                        let mut batch = crate::integrator::hit_batch::HitBatch::default();
+                        batch.build(&scene, &queue.rays, &hits);
+                        let (mut pa, mut pb) = (LightPoints::default(), LightPoints::default());
+                        for (material, range) in batch.groups.clone() {
+                            let m = &scene.materials[material as usize];
+                            let hl = Highlight {
+                                specular: m.specular,
+                                shininess: m.shininess,
+                            };
+                            let point = |k: usize| {
+                                let q = batch.ray[k] as usize;
+                                let slot = queue.slot(q);
+                                ShadingPoint {
+                                    batch: &batch,
+                                    k,
+                                    albedo: m.diffuse * (1.0 + (k % 5) as f32 * 0.1),
+                                    hl,
+                                    slot,
+                                    weight: queue.weight(q) * (1.0 + (k % 3) as f32 * 0.25),
+                                    time: queue.rays[q].time,
+                                    pixel: slot as u64,
+                                    path: queue.path(q),
+                                    depth,
+                                }
+                            };
+                            let mut k = range.start;
+                            while k < range.end {
+                                let n = (range.end - k).min(16 / stride);
+                                let pts: Vec<_> = (k..k + n).map(point).collect();
+                                let mut one: Vec<Option<PixelRng>> = vec![None; n];
+                                for (h, stream) in pts.iter().zip(&mut one) {
+                                    shade_quads(&shader, quads, h, stream, &mut a, &mut pa);
+                                }
+                                let mut packed: Vec<Option<PixelRng>> = vec![None; 16];
+                                if samples <= 16 {
+                                    let left = shade_quads_packed(
+                                        &shader,
+                                        quads,
+                                        occluders,
+                                        &pts,
+                                        stride,
+                                        &mut packed,
+                                        &mut b,
+                                        &mut pb,
+                                    );
+                                    assert_eq!(left, 0, "{name}: every point accepted");
+                                    let l = quads.lights.len();
+                                    for (j, h) in pts.iter().enumerate() {
+                                        for t in pb.totals[j * l..(j + 1) * l].iter().flatten() {
+                                            b.acc[h.slot as usize] += *t;
+                                        }
+                                    }
+                                    packs += 1;
+                                } else {
+                                    for (h, stream) in pts.iter().zip(&mut packed) {
+                                        shade_quads(&shader, quads, h, stream, &mut b, &mut pb);
+                                    }
+                                }
+                                for (j, (x, y)) in one.iter().zip(&packed).enumerate() {
+                                    let after =
+                                        |r: &Option<PixelRng>| r.clone().map(|mut r| r.next_u64());
+                                    assert_eq!(
+                                        after(x),
+                                        after(y),
+                                        "{name} depth {depth}: stream {j}"
+                                    );
+                                }
+                                points_compared += n;
+                                k += n;
+                            }
+                        }
+                        assert_eq!(a.rays, b.rays, "{name} depth {depth}: ray counts");
+                        assert_eq!(a.drawn, b.drawn, "{name} depth {depth}: samples drawn");
+                        for (slot, (x, y)) in a.acc.iter().zip(&b.acc).enumerate() {
+                            assert_eq!(bits(x), bits(y), "{name} depth {depth} sample {slot}");
+                            lit_samples += (*x != Vec3::ZERO) as u64;
+                        }
+                        // The children of the mirror and the glass (no random numbers),
+                        // for the next waves.
+                        let mut c = sinks(&scene, slots);
+                        shade_queue(
+                            &shader,
+                            Some(&lanes),
+                            &queue,
+                            &hits,
+                            depth,
+                            &mut c,
+                            &mut scratch,
+                        );
+                        for kind in ChildKind::ALL {
+                            if depth < 2
+                                && let Some(q) = c.next[kind].take()
+                                && !q.rays.is_empty()
+                            {
+                                queues.push((q, depth + 1));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "packed quad lights: {packs} packs, {points_compared} points, {lit_samples} lit sums"
+        );
+        assert!(
+            packs > 2000 && lit_samples > 5_000,
+            "{packs} packs, {lit_samples} lit"
+        );
     }
 
     /// The fused path (samples settled and summed in lanes) against the queue path

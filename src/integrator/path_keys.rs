@@ -5,7 +5,7 @@
 //! integrators draw the same samples.
 
 use super::SamplerKind;
-use super::sampling::{Dimension, PixelRng, fill_2d, fill_2d_split, pad_to_lanes};
+use super::sampling::{Dimension, PixelRng, append_2d_split, fill_2d, pad_to_lanes};
 use super::sobol::{SobolDim, SobolSet};
 
 /// Which per-hit set a shading point draws: its pixel, path and depth, and what the
@@ -55,22 +55,36 @@ pub(crate) fn hit_points_split(
     (u, v): (&mut Vec<f32>, &mut Vec<f32>),
     pairs: &mut Vec<(f32, f32)>,
 ) {
+    u.clear();
+    v.clear();
+    hit_points_append(sampler, set, n, stream, (u, v), pairs);
+    pad_to_lanes(u);
+    pad_to_lanes(v);
+}
+
+/// [`hit_points_split`] appended after what `u` and `v` hold, without padding: a pack
+/// of shading points (`area_light::shade_quads_packed`) puts its points' sets side by
+/// side, each at its block of lanes, without a copy per point.
+pub(crate) fn hit_points_append(
+    sampler: SamplerKind,
+    set: HitSet,
+    n: u32,
+    stream: &mut Option<PixelRng>,
+    (u, v): (&mut Vec<f32>, &mut Vec<f32>),
+    pairs: &mut Vec<(f32, f32)>,
+) {
     if sampler == SamplerKind::Sobol && set.depth == 0 {
         let seq = SobolSet::new(set.seed, set.pixel, set.dim);
         let first = (set.path as u32).wrapping_mul(n);
-        u.clear();
-        v.clear();
         for i in 0..n {
             let (a, b) = seq.point(first.wrapping_add(i));
             u.push(a);
             v.push(b);
         }
-        pad_to_lanes(u);
-        pad_to_lanes(v);
         return;
     }
     let rng = stream.get_or_insert_with(|| path_rng(set.seed, set.pixel, set.path));
-    fill_2d_split(sampler, n, Dimension::Hit, rng, (u, v), pairs);
+    append_2d_split(sampler, n, Dimension::Hit, rng, (u, v), pairs);
 }
 
 /// The random stream of the shading point reached by path `path` of pixel `pixel`.

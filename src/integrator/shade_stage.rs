@@ -20,11 +20,14 @@
 //! Not in lanes (the scalar shader handles them, per material or per scene): image
 //! textures, spot, disk and sphere lights, and the environment.
 
-use super::area_light::{LightPoints, QuadLights, ShadingPoint, shade_quads};
+use super::area_light::{
+    LightPoints, QuadLights, ShadingPoint, pack_stride, shade_quads, shade_quads_packed,
+};
 use super::hit_batch::HitBatch;
 use super::path_keys::child_path;
 use super::point_shadow::{PointOccluders, settle_and_sum};
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
+use super::sampling::PixelRng;
 use super::shader::{ChildKind, Emitted, Shader};
 use super::tiny_shadow::LaneOccluders;
 use crate::accel::SceneHit;
@@ -120,6 +123,12 @@ impl LaneShading {
             quads,
             point_occluders: None,
         })
+    }
+
+    /// The quad lights in lane form (tests).
+    #[cfg(test)]
+    pub fn quads(&self) -> &QuadLights {
+        &self.quads
     }
 
     /// Settles the quad lights' samples in lanes with `occluders` where given, instead
@@ -460,28 +469,107 @@ fn shade_group_lanes(
 
     // Per hit below: the quad lights and the scalar child lobes. A group with neither
     // (every hit of whitted_base) skips the loop and its per-hit gathers.
-    let per_hit = (lit && !lanes.quads.is_empty()) || (spawns && !lane_children);
-    for k in range.clone().filter(|_| per_hit) {
+    let quads = lit && !lanes.quads.is_empty();
+    let scalar_children = spawns && !lane_children;
+    if !(quads || scalar_children) {
+        return;
+    }
+    let point = |k: usize, slot_pixel: &[u64]| {
         let q = batch.ray[k] as usize;
         let slot = queue.slot(q);
-        let weight = queue.weight(q);
-        let time = queue.rays[q].time;
-        let pixel = sinks.slot_pixel[slot as usize];
-        let path = queue.path(q);
+        ShadingPoint {
+            batch,
+            k,
+            albedo: if quads {
+                albedo[k - range.start]
+            } else {
+                Vec3::ZERO
+            },
+            hl,
+            slot,
+            weight: queue.weight(q),
+            time: queue.rays[q].time,
+            pixel: slot_pixel[slot as usize],
+            path: queue.path(q),
+            depth,
+        }
+    };
+    let children = |h: &ShadingPoint, stream: &mut Option<PixelRng>, sinks: &mut Sinks| {
+        let q = batch.ray[h.k] as usize;
+        let si = batch.interaction(h.k, material);
+        let out = &mut sinks.emitted;
+        out.children.clear();
+        shader.emit_children(
+            batch.dir.get(h.k),
+            h.time,
+            &si,
+            depth,
+            queue.throughput(q),
+            h.pixel,
+            h.path,
+            stream,
+            out,
+            &mut sinks.rays,
+            &mut sinks.drawn,
+        );
+        debug_assert!(
+            out.children.iter().all(|c| c.kind != ChildKind::Refraction) || scene.features.glass,
+            "a refracted ray from a scene without glass"
+        );
+        push_children(&mut sinks.next, &sinks.emitted, h.slot, h.weight);
+    };
+    // The quad lights of several points per lane group where a point's samples leave
+    // lanes idle (`area_light::shade_quads_packed`): each point's sums added to its
+    // camera sample in point order and light order, and its stream then handed to its
+    // child lobes, as below.
+    let packed = lanes
+        .quads
+        .occluders
+        .as_ref()
+        .filter(|_| quads)
+        .zip(pack_stride(shader.plan.shadow));
+    if let Some((occluders, stride)) = packed {
+        let lights = lanes.quads.lights.len();
+        let mut k = range.start;
+        while k < range.end {
+            let n = (range.end - k).min(16 / stride);
+            let mut pts = [point(k, &sinks.slot_pixel); 16];
+            for (j, h) in pts.iter_mut().enumerate().take(n).skip(1) {
+                *h = point(k + j, &sinks.slot_pixel);
+            }
+            let pts = &pts[..n];
+            let mut streams: [Option<PixelRng>; 16] = Default::default();
+            let light = &mut scratch.light;
+            let left = shade_quads_packed(
+                shader,
+                &lanes.quads,
+                occluders,
+                pts,
+                stride,
+                &mut streams,
+                sinks,
+                light,
+            );
+            for (j, (h, stream)) in pts.iter().zip(&mut streams).enumerate() {
+                if left >> j & 1 == 1 {
+                    shade_quads(shader, &lanes.quads, h, stream, sinks, light);
+                } else {
+                    for t in light.totals[j * lights..(j + 1) * lights].iter().flatten() {
+                        sinks.acc[h.slot as usize] += *t;
+                    }
+                }
+                if scalar_children {
+                    children(h, stream, sinks);
+                }
+            }
+            k += n;
+        }
+        return;
+    }
+    for k in range.clone() {
+        let h = point(k, &sinks.slot_pixel);
         let mut stream = None;
-        if lit && !lanes.quads.is_empty() {
-            let h = ShadingPoint {
-                batch,
-                k,
-                albedo: albedo[k - range.start],
-                hl,
-                slot,
-                weight,
-                time,
-                pixel,
-                path,
-                depth,
-            };
+        if quads {
             shade_quads(
                 shader,
                 &lanes.quads,
@@ -491,29 +579,8 @@ fn shade_group_lanes(
                 &mut scratch.light,
             );
         }
-        if spawns && !lane_children {
-            let si = batch.interaction(k, material);
-            let out = &mut sinks.emitted;
-            out.children.clear();
-            shader.emit_children(
-                batch.dir.get(k),
-                time,
-                &si,
-                depth,
-                queue.throughput(q),
-                pixel,
-                path,
-                &mut stream,
-                out,
-                &mut sinks.rays,
-                &mut sinks.drawn,
-            );
-            debug_assert!(
-                out.children.iter().all(|c| c.kind != ChildKind::Refraction)
-                    || scene.features.glass,
-                "a refracted ray from a scene without glass"
-            );
-            push_children(&mut sinks.next, &sinks.emitted, slot, weight);
+        if scalar_children {
+            children(&h, &mut stream, sinks);
         }
     }
 }

@@ -149,6 +149,8 @@ pub struct LaneOccluders {
     /// Per plane, an earlier one that is the same plane (`TrianglePlane::same_plane`:
     /// the two triangles of a quad), whose side and culled lanes it takes.
     twins: Vec<Option<usize>>,
+    /// Bit `i` where triangle `i` has no twin (its own plane test).
+    untwinned: u32,
     spheres: Vec<(Vec3, f32)>,
     /// Per sphere of the opaque and of the glass list, its index in `spheres` (the
     /// lists are parts of it), so that each sphere is tested once per shading point.
@@ -208,6 +210,38 @@ pub struct SphereBits {
     all: u32,
     opaque: u32,
     glass: u32,
+}
+
+impl SphereBits {
+    /// The spheres of either (a pack of shading points' segments: testing a sphere on
+    /// a lane it is clear of finds no root there, the cull's answer, so the union
+    /// settles every lane as its own bits do).
+    pub fn union(self, o: SphereBits) -> SphereBits {
+        SphereBits {
+            all: self.all | o.all,
+            opaque: self.opaque | o.opaque,
+            glass: self.glass | o.glass,
+        }
+    }
+}
+
+/// The triangle-plane sides of the shared origin of one shading point's lanes in a
+/// pack ([`LaneOccluders::settle_segments`]): the origin last seen and the side of
+/// each plane it lies on, as [`NearSpheres`] keeps them for one point.
+///
+/// Bits per plane (bit `i` for triangle `i`): the origin lies on the side `n` points to
+/// (`above`), on the other (`below`), on the plane (`on`); none where the side is not
+/// known or not asked for.
+///
+/// Measured: as an array of `Option<f32>` per plane (`NearSpheres`' form), rewritten
+/// per point, its store and reads were ~10 % of `shade_quads_packed`'s samples
+/// (dof_area, perf, 1 thread).
+#[derive(Clone, Copy, Default)]
+pub struct SegmentSides {
+    origin: Option<Vec3>,
+    above: u32,
+    below: u32,
+    on: u32,
 }
 
 /// Which spheres the light samples of one shading point may meet
@@ -480,9 +514,13 @@ impl LaneOccluders {
     pub fn new(accel: &SceneAccel, filter: Option<&ShadowFilter>) -> Option<LaneOccluders> {
         let (tiny, glass) = tiny_shadow_scene(accel, filter)?;
         let planes: Vec<TrianglePlane> = tiny.triangles().iter().map(TrianglePlane::new).collect();
-        let twins = (0..planes.len())
+        let twins: Vec<Option<usize>> = (0..planes.len())
             .map(|i| (0..i).find(|&j| planes[j].same_plane(&planes[i])))
             .collect();
+        let untwinned = twins
+            .iter()
+            .enumerate()
+            .fold(0u32, |b, (i, t)| b | (t.is_none() as u32) << (i & 31));
         let spheres = tiny.spheres().to_vec();
         let glass_index = glass_index(&spheres, glass.as_ref());
         static NEXT: AtomicU64 = AtomicU64::new(1);
@@ -491,6 +529,7 @@ impl LaneOccluders {
             triangles: tiny.triangles().to_vec(),
             planes,
             twins,
+            untwinned,
             spheres,
             glass_index,
             glass,
@@ -536,6 +575,177 @@ impl LaneOccluders {
             opaque: spheres.opaque,
             glass: spheres.glass,
         }
+    }
+
+    /// [`spheres_near`](Self::spheres_near) for the light samples of several shading
+    /// points in one lane group (base points `bases`): a triangle's plane cull is tried
+    /// where it may skip some segment of any of them (it is exact wherever it is
+    /// applied: `TrianglePlane::leaving`).
+    pub fn spheres_near_points(
+        &self,
+        bases: impl IntoIterator<Item = Vec3>,
+        spheres: SphereBits,
+        q: &QuadLight,
+    ) -> NearSpheres {
+        let corners = [
+            q.corner,
+            q.corner + q.edge1,
+            q.corner + q.edge1 + q.edge2,
+            q.corner + q.edge2,
+        ];
+        // Only the planes `settle_segments` reads (a twin takes its plane's sides), each
+        // until one point sets it.
+        let mut planes = 0u32;
+        for base in bases {
+            let mut ask = self.untwinned & !planes;
+            while ask != 0 {
+                let k = ask.trailing_zeros() as usize;
+                ask &= ask - 1;
+                if self
+                    .planes
+                    .get(k)
+                    .is_some_and(|p| p.may_cull(base, &corners))
+                {
+                    planes |= 1 << k;
+                }
+            }
+        }
+        NearSpheres {
+            planes,
+            sides: (None, [None; TINY_MAX_PRIMITIVES]),
+            all: spheres.all,
+            opaque: spheres.opaque,
+            glass: spheres.glass,
+        }
+    }
+
+    /// [`settle`](Self::settle) for lanes holding the light samples of several shading
+    /// points (a pack: `segments[j].0` the lanes of point `j`, `segments[j].1` the
+    /// plane sides of its shared origin, kept across calls): every lane gets the answer
+    /// `settle` gives it. Per point whose valid lanes share one origin, the plane cull
+    /// from that origin's sides (computed once per origin, as `settle` does per point);
+    /// per key group, the triangle test from the shared origin where the group's lanes
+    /// are one point's and share it (`TinyGroup::from_lanes_at`, the same f32
+    /// differences as `from_lanes`), else from the lanes' origins; the spheres of
+    /// `near_spheres` (the union of the points' bits) once for every valid lane.
+    #[inline(always)]
+    pub fn settle_segments(
+        &self,
+        origin: V3,
+        dir: V3,
+        tmax: Packet,
+        live: u32,
+        near_spheres: &NearSpheres,
+        segments: &mut [(u32, SegmentSides)],
+    ) -> LaneSettled {
+        let lanes = RayLanes {
+            o: [origin.x, origin.y, origin.z],
+            d: [dir.x, dir.y, dir.z],
+            tmin: Packet::splat(0.0),
+        };
+        let keys = lane_shear_keys(&lanes, tmax);
+        let valid = keys.iter().fold(0, |a, &k| a | k) & live;
+        let same = |p: Packet, v: f32, lanes: u32| {
+            let signs = p.to_bitmask();
+            let signs = if v.is_sign_negative() { signs } else { !signs };
+            p.simd_eq(Packet::splat(v)).to_bitmask() & signs & lanes
+        };
+        // Per plane, the lanes leaving it away from their point's shared origin, and
+        // its two directions of leaving (computed on first need).
+        let mut culled = [0u32; TINY_MAX_PRIMITIVES];
+        let mut away: [Option<(u32, u32)>; TINY_MAX_PRIMITIVES] = [None; TINY_MAX_PRIMITIVES];
+        // The points whose valid lanes share an origin: (lanes, origin).
+        let mut shared = [(0u32, Vec3::ZERO); PACKET_WIDTH];
+        let mut n_shared = 0;
+        for (seg, cache) in segments.iter_mut() {
+            let v = valid & *seg;
+            if v == 0 {
+                continue;
+            }
+            let o = origin.lane(v.trailing_zeros() as usize & 15);
+            if same(origin.x, o.x, v) & same(origin.y, o.y, v) & same(origin.z, o.z, v) != v {
+                continue;
+            }
+            shared[n_shared & (PACKET_WIDTH - 1)] = (v, o);
+            n_shared += 1;
+            if cache.origin != Some(o) {
+                // The sides of the planes tried (a twin takes its plane's lanes below).
+                let (mut above, mut below, mut on) = (0, 0, 0);
+                let mut tried = near_spheres.planes & self.untwinned;
+                while tried != 0 {
+                    let i = tried.trailing_zeros() as usize;
+                    tried &= tried - 1;
+                    match self.planes.get(i).and_then(|p| p.side(o)) {
+                        Some(side) if side > 0.0 => above |= 1 << i,
+                        Some(side) if side < 0.0 => below |= 1 << i,
+                        Some(_) => on |= 1 << i,
+                        None => {}
+                    }
+                }
+                *cache = SegmentSides {
+                    origin: Some(o),
+                    above,
+                    below,
+                    on,
+                };
+            }
+            let mut known = cache.above | cache.below | cache.on;
+            while known != 0 {
+                let i = known.trailing_zeros() as usize & (TINY_MAX_PRIMITIVES - 1);
+                known &= known - 1;
+                let (up, down) =
+                    *away[i].get_or_insert_with(|| self.planes[i].away(&lanes.d, valid));
+                let bit = 1 << i;
+                culled[i] |= v & if cache.above & bit != 0 {
+                    up
+                } else if cache.below & bit != 0 {
+                    down
+                } else {
+                    up | down
+                };
+            }
+        }
+        let mut reach = [valid; TINY_MAX_PRIMITIVES];
+        for (i, twin) in self.twins.iter().enumerate().take(TINY_MAX_PRIMITIVES) {
+            reach[i] = match *twin {
+                Some(j) if j < i => reach[j],
+                _ => valid & !culled[i],
+            };
+        }
+        let shared = &shared[..n_shared.min(PACKET_WIDTH)];
+        let mut tri = 0u32;
+        for (key, &bits) in keys.iter().enumerate() {
+            let mask = bits & live;
+            if mask == 0 {
+                continue;
+            }
+            let at = shared.iter().find(|(v, _)| mask & !v == 0).map(|&(_, o)| o);
+            let g = match at {
+                Some(o) => TinyGroup::from_lanes_at(key, lanes, tmax, mask, o),
+                None => TinyGroup::from_lanes(key, lanes, tmax, mask),
+            };
+            let mut t = 0;
+            for (corners, reach) in self.triangles.iter().zip(reach) {
+                let test = mask & reach & !t;
+                if test != 0 {
+                    let test = test & !g.beyond(corners, test);
+                    if test != 0 {
+                        t |= g.triangle_blocks(corners, test);
+                    }
+                }
+            }
+            tri |= t;
+        }
+        settle_near_spheres(
+            &lanes,
+            tmax,
+            (live, tri, valid & !tri),
+            &self.spheres,
+            near_spheres.all,
+            self.glass.as_ref(),
+            &self.glass_index,
+            |_| (near_spheres.opaque, near_spheres.glass),
+        )
     }
 
     /// Settles the rays `origin + t dir`, `t` in `(0, tmax)`, of the lanes in `live`,

@@ -570,20 +570,29 @@ impl TrianglePlane {
     /// of either sign for an origin on the plane, clear of the margin.
     #[inline(always)]
     pub fn leaving(&self, side: f32, d: &[TinyLanes; 3], live: u32) -> u32 {
+        let (up, down) = self.away(d, live);
+        if side > 0.0 {
+            up
+        } else if side < 0.0 {
+            down
+        } else {
+            up | down
+        }
+    }
+
+    /// `(up, down)`: the lanes of `live` whose direction `d` leaves the plane along `n`
+    /// and against it, clear of the margin; [`leaving`](Self::leaving) is `up` from the
+    /// side `n` points to, `down` from the other, both from the plane. For lanes whose
+    /// origins lie on different sides (a pack of shading points).
+    #[inline(always)]
+    pub fn away(&self, d: &[TinyLanes; 3], live: u32) -> (u32, u32) {
         let [nx, ny, nz] = self.n32.map(TinyLanes::splat);
         let [tx, ty, tz] = self.terms32.map(|t| TinyLanes::splat(1e-5 * t));
         let nd = nx * d[0] + ny * d[1] + nz * d[2];
         let margin = tx * d[0].abs() + ty * d[1].abs() + tz * d[2].abs();
         let up = nd.simd_gt(margin).to_bitmask();
         let down = nd.simd_lt(TinyLanes::splat(0.0) - margin).to_bitmask();
-        let away = if side > 0.0 {
-            up
-        } else if side < 0.0 {
-            down
-        } else {
-            up | down
-        };
-        away & live
+        (up & live, down & live)
     }
 }
 
