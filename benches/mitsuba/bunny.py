@@ -1,7 +1,9 @@
 """Mitsuba 3 (llvm_ad_rgb) render of BENCHMARK.md's bunny frame, for issue 11."""
-import json, math, statistics, sys, time
+import math
+import sys
 import drjit as dr
 import mitsuba as mi
+from timing import time_renders
 
 obj, W, H, threads, reps = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
 variant = sys.argv[6] if len(sys.argv) > 6 else "llvm_ad_rgb"
@@ -34,17 +36,4 @@ scene = mi.load_dict({
               "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.8, 0.8, 0.8]}}},
     "light": {"type": "point", "position": light, "intensity": {"type": "rgb", "value": [d * d] * 3}},
 })
-times, cpu = [], []
-for i in range(reps + 1):
-    t0, c0 = time.perf_counter(), time.process_time()
-    img = mi.render(scene, spp=1, seed=i)
-    dr.eval(img); dr.sync_thread()
-    times.append(time.perf_counter() - t0)
-    cpu.append(time.process_time() - c0)
-if len(sys.argv) > 7:
-    mi.util.write_bitmap(sys.argv[7], img)
-warm = times[1:]
-print(json.dumps({"tracer": "mitsuba " + mi.__version__, "variant": variant, "threads": threads,
-                  "first_s": round(times[0], 4), "warm_min_s": round(min(warm), 4),
-                  "warm_median_s": round(statistics.median(warm), 4), "warm_max_s": round(max(warm), 4),
-                  "cpu_per_wall": round(sum(cpu[1:]) / sum(warm), 3)}))
+time_renders(scene, 1, reps, {"scene": "bunny", "variant": variant, "threads": threads}, sys.argv[7] if len(sys.argv) > 7 else None)

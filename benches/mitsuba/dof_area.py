@@ -1,9 +1,10 @@
 """Mitsuba 3 version of scenes/dof_area.toml (16 eye x 4 light samples), for issue 11.
 Differences: circular aperture (ours hexagonal), the red sphere diffuse only (ours adds a
 Phong lobe), no ambient term, the checker as a 2D texture on the floor's uv."""
-import json, statistics, sys, time
+import sys
 import drjit as dr
 import mitsuba as mi
+from timing import time_renders
 
 W, H, threads, reps = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 mi.set_variant(sys.argv[5] if len(sys.argv) > 5 else "llvm_ad_rgb")
@@ -31,17 +32,4 @@ scene = mi.load_dict({
     "light": {"type": "rectangle", "to_world": T().translate([0, 3.5, 0]).rotate([1, 0, 0], 90).scale(0.75),
               "emitter": {"type": "area", "radiance": rgb([6, 6, 6])}},
 })
-times, cpu = [], []
-for i in range(reps + 1):
-    t0, c0 = time.perf_counter(), time.process_time()
-    img = mi.render(scene, spp=16, seed=i)
-    dr.eval(img); dr.sync_thread()
-    times.append(time.perf_counter() - t0)
-    cpu.append(time.process_time() - c0)
-if len(sys.argv) > 6:
-    mi.util.write_bitmap(sys.argv[6], img)
-warm = times[1:]
-print(json.dumps({"scene": "dof_area", "threads": threads, "first_s": round(times[0], 4),
-                  "warm_min_s": round(min(warm), 4), "warm_median_s": round(statistics.median(warm), 4),
-                  "warm_max_s": round(max(warm), 4),
-                  "cpu_per_wall": round(sum(cpu[1:]) / sum(warm), 3)}))
+time_renders(scene, 16, reps, {"scene": "dof_area", "threads": threads}, sys.argv[6] if len(sys.argv) > 6 else None)

@@ -175,6 +175,19 @@ pub(crate) struct ShadingPoint<'a> {
     pub depth: u32,
 }
 
+impl ShadingPoint<'_> {
+    /// The key of the point's light points towards light `index`.
+    fn light_set(&self, seed: u64, index: u32) -> HitSet {
+        HitSet {
+            seed,
+            pixel: self.pixel,
+            path: self.path,
+            depth: self.depth,
+            dim: SobolDim::Light(index),
+        }
+    }
+}
+
 /// The direct light of every quad light at the shading point `h`: `shadow` samples
 /// per light (the sample plan's), drawn into lanes from the point's stream (`stream`,
 /// created on first use, shared with the point's later draws); queued as shadow rays
@@ -242,13 +255,7 @@ pub(crate) fn shade_quads(
         // The light points straight into lanes (`u`, `v` padded to 16).
         hit_points_split(
             plan.sampler,
-            HitSet {
-                seed: shader.seed,
-                pixel: h.pixel,
-                path: h.path,
-                depth: h.depth,
-                dim: SobolDim::Light(*index),
-            },
+            h.light_set(shader.seed, *index),
             samples,
             stream,
             (&mut points.u, &mut points.v),
@@ -437,13 +444,7 @@ pub(crate) fn shade_quads_packed(
             v.resize(j * stride, 0.0);
             hit_points_append(
                 plan.sampler,
-                HitSet {
-                    seed: shader.seed,
-                    pixel: h.pixel,
-                    path: h.path,
-                    depth: h.depth,
-                    dim: SobolDim::Light(*index),
-                },
+                h.light_set(shader.seed, *index),
                 samples as u32,
                 &mut streams[j],
                 (u, v),

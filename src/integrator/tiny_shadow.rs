@@ -713,39 +713,10 @@ impl LaneOccluders {
             };
         }
         let shared = &shared[..n_shared.min(PACKET_WIDTH)];
-        let mut tri = 0u32;
-        for (key, &bits) in keys.iter().enumerate() {
-            let mask = bits & live;
-            if mask == 0 {
-                continue;
-            }
-            let at = shared.iter().find(|(v, _)| mask & !v == 0).map(|&(_, o)| o);
-            let g = match at {
-                Some(o) => TinyGroup::from_lanes_at(key, lanes, tmax, mask, o),
-                None => TinyGroup::from_lanes(key, lanes, tmax, mask),
-            };
-            let mut t = 0;
-            for (corners, reach) in self.triangles.iter().zip(reach) {
-                let test = mask & reach & !t;
-                if test != 0 {
-                    let test = test & !g.beyond(corners, test);
-                    if test != 0 {
-                        t |= g.triangle_blocks(corners, test);
-                    }
-                }
-            }
-            tri |= t;
-        }
-        settle_near_spheres(
-            &lanes,
-            tmax,
-            (live, tri, valid & !tri),
-            &self.spheres,
-            near_spheres.all,
-            self.glass.as_ref(),
-            &self.glass_index,
-            |_| (near_spheres.opaque, near_spheres.glass),
-        )
+        let tri = self.triangle_blocks(&keys, live, &lanes, tmax, &reach, |mask| {
+            shared.iter().find(|(v, _)| mask & !v == 0).map(|&(_, o)| o)
+        });
+        self.settle_spheres(&lanes, tmax, (live, tri, valid & !tri), near_spheres)
     }
 
     /// Settles the rays `origin + t dir`, `t` in `(0, tmax)`, of the lanes in `live`,
@@ -811,21 +782,39 @@ impl LaneOccluders {
                 }
             }
         }
+        let tri = self.triangle_blocks(&keys, live, &lanes, tmax, &reach, |_| shared);
+        self.settle_spheres(&lanes, tmax, (live, tri, valid & !tri), near_spheres)
+    }
+
+    /// The lanes of `live` that a triangle blocks, one shear-key group at a time
+    /// (`keys`), each lane tested only against the triangles in its `reach`; `at`
+    /// gives the origin shared by a group's lanes, where they share one (bit for bit).
+    /// The light's own triangles, beyond the segments' ends, are skipped by
+    /// `TinyGroup::beyond` before the full test.
+    #[inline(always)]
+    fn triangle_blocks(
+        &self,
+        keys: &[u32; 6],
+        live: u32,
+        lanes: &RayLanes<Packet>,
+        tmax: Packet,
+        reach: &[u32; TINY_MAX_PRIMITIVES],
+        at: impl Fn(u32) -> Option<Vec3>,
+    ) -> u32 {
         let mut tri = 0u32;
         for (key, &bits) in keys.iter().enumerate() {
             let mask = bits & live;
             if mask == 0 {
                 continue;
             }
-            let g = match shared {
-                Some(o) => TinyGroup::from_lanes_at(key, lanes, tmax, mask, o),
-                None => TinyGroup::from_lanes(key, lanes, tmax, mask),
+            let g = match at(mask) {
+                Some(o) => TinyGroup::from_lanes_at(key, *lanes, tmax, mask, o),
+                None => TinyGroup::from_lanes(key, *lanes, tmax, mask),
             };
             let mut t = 0;
-            for (corners, reach) in self.triangles.iter().zip(reach) {
+            for (corners, &reach) in self.triangles.iter().zip(reach) {
                 let test = mask & reach & !t;
                 if test != 0 {
-                    // The light's own triangles, beyond the segments' ends.
                     let test = test & !g.beyond(corners, test);
                     if test != 0 {
                         t |= g.triangle_blocks(corners, test);
@@ -834,18 +823,30 @@ impl LaneOccluders {
             }
             tri |= t;
         }
-        // The spheres once for all valid lanes, not once per key group: a sphere's
-        // lane test reads the lanes as they are (`TinyGroup` holds `lanes` unchanged),
-        // so each lane is tested against the same spheres with the same answers as per
-        // group. Each near sphere's roots are kept for the glass settlement.
-        //
-        // Measured (whitted_area64 512x384, 1 thread, AVX-512, perf): before, the
-        // sphere test per key group was 7.1 % of the frame's samples, and the glass
-        // settlement (`settle_gathered`, computing the same roots again) 4.5 %.
+        tri
+    }
+
+    /// The spheres once for all valid lanes of `(live, tri, open)`, not once per key
+    /// group: a sphere's lane test reads the lanes as they are (`TinyGroup` holds
+    /// `lanes` unchanged), so each lane is tested against the same spheres with the
+    /// same answers as per group. Each near sphere's roots are kept for the glass
+    /// settlement.
+    ///
+    /// Measured (whitted_area64 512x384, 1 thread, AVX-512, perf): before, the sphere
+    /// test per key group was 7.1 % of the frame's samples, and the glass settlement
+    /// (`settle_gathered`, computing the same roots again) 4.5 %.
+    #[inline(always)]
+    fn settle_spheres(
+        &self,
+        lanes: &RayLanes<Packet>,
+        tmax: Packet,
+        lanes_of: (u32, u32, u32),
+        near_spheres: &NearSpheres,
+    ) -> LaneSettled {
         settle_near_spheres(
-            &lanes,
+            lanes,
             tmax,
-            (live, tri, valid & !tri),
+            lanes_of,
             &self.spheres,
             near_spheres.all,
             self.glass.as_ref(),
