@@ -638,18 +638,7 @@ impl LaneOccluders {
         near_spheres: &NearSpheres,
         segments: &mut [(u32, SegmentSides)],
     ) -> LaneSettled {
-        let lanes = RayLanes {
-            o: [origin.x, origin.y, origin.z],
-            d: [dir.x, dir.y, dir.z],
-            tmin: Packet::splat(0.0),
-        };
-        let keys = lane_shear_keys(&lanes, tmax);
-        let valid = keys.iter().fold(0, |a, &k| a | k) & live;
-        let same = |p: Packet, v: f32, lanes: u32| {
-            let signs = p.to_bitmask();
-            let signs = if v.is_sign_negative() { signs } else { !signs };
-            p.simd_eq(Packet::splat(v)).to_bitmask() & signs & lanes
-        };
+        let (lanes, keys, valid) = key_lanes(origin, dir, tmax, live);
         // Per plane, the lanes leaving it away from their point's shared origin, and
         // its two directions of leaving (computed on first need).
         let mut culled = [0u32; TINY_MAX_PRIMITIVES];
@@ -662,10 +651,9 @@ impl LaneOccluders {
             if v == 0 {
                 continue;
             }
-            let o = origin.lane(v.trailing_zeros() as usize & 15);
-            if same(origin.x, o.x, v) & same(origin.y, o.y, v) & same(origin.z, o.z, v) != v {
+            let Some(o) = shared_origin(origin, v) else {
                 continue;
-            }
+            };
             shared[n_shared & (PACKET_WIDTH - 1)] = (v, o);
             n_shared += 1;
             if cache.origin != Some(o) {
@@ -731,26 +719,10 @@ impl LaneOccluders {
         live: u32,
         near_spheres: &mut NearSpheres,
     ) -> LaneSettled {
-        let lanes = RayLanes {
-            o: [origin.x, origin.y, origin.z],
-            d: [dir.x, dir.y, dir.z],
-            tmin: Packet::splat(0.0),
-        };
-        let keys = lane_shear_keys(&lanes, tmax);
-        let valid = keys.iter().fold(0, |a, &k| a | k) & live;
+        let (lanes, keys, valid) = key_lanes(origin, dir, tmax, live);
         // One origin for every valid lane (the common case: every sample of a shading
-        // point leaves from the same offset point), bit for bit: equal as floats and
-        // with equal sign bits (`to_bitmask` reads the sign bits), so a zero and a
-        // negative zero differ.
-        let shared = (valid != 0).then(|| origin.lane(valid.trailing_zeros() as usize & 15));
-        let shared = shared.filter(|o| {
-            let same = |p: Packet, v: f32| {
-                let signs = p.to_bitmask();
-                let signs = if v.is_sign_negative() { signs } else { !signs };
-                p.simd_eq(Packet::splat(v)).to_bitmask() & signs
-            };
-            same(origin.x, o.x) & same(origin.y, o.y) & same(origin.z, o.z) & valid == valid
-        });
+        // point leaves from the same offset point).
+        let shared = shared_origin(origin, valid);
         // Per triangle, the valid lanes that may meet it: all but those leaving its
         // plane from the shared origin's side (`TrianglePlane`), tried where it may
         // skip some (`NearSpheres::planes`); below, per key group, also all but those
@@ -854,6 +826,37 @@ impl LaneOccluders {
             |_| (near_spheres.opaque, near_spheres.glass),
         )
     }
+}
+
+/// The lanes of the rays `origin + t dir`, `t` in `(0, tmax)`, their shear-key groups,
+/// and the lanes of `live` that some group takes (the valid ones).
+#[inline(always)]
+fn key_lanes(origin: V3, dir: V3, tmax: Packet, live: u32) -> (RayLanes<Packet>, [u32; 6], u32) {
+    let lanes = RayLanes {
+        o: [origin.x, origin.y, origin.z],
+        d: [dir.x, dir.y, dir.z],
+        tmin: Packet::splat(0.0),
+    };
+    let keys = lane_shear_keys(&lanes, tmax);
+    let valid = keys.iter().fold(0, |a, &k| a | k) & live;
+    (lanes, keys, valid)
+}
+
+/// The origin that every lane of `lanes` holds, where they hold one bit for bit: equal
+/// as floats and with equal sign bits (`to_bitmask` reads the sign bits), so a zero and
+/// a negative zero differ; `None` for no lanes or different origins.
+#[inline(always)]
+fn shared_origin(origin: V3, lanes: u32) -> Option<Vec3> {
+    if lanes == 0 {
+        return None;
+    }
+    let o = origin.lane(lanes.trailing_zeros() as usize & 15);
+    let same = |p: Packet, v: f32| {
+        let signs = p.to_bitmask();
+        let signs = if v.is_sign_negative() { signs } else { !signs };
+        p.simd_eq(Packet::splat(v)).to_bitmask() & signs & lanes
+    };
+    (same(origin.x, o.x) & same(origin.y, o.y) & same(origin.z, o.z) == lanes).then_some(o)
 }
 
 /// The spheres of both lane-settled shadow paths (quad lights in [`LaneOccluders`],

@@ -161,22 +161,8 @@ impl QuadSamples {
     /// for the caller to use `quad_light`.
     #[inline(always)]
     pub fn new(s: &SurfaceLanes, hl: &Highlight) -> Option<QuadSamples> {
-        let nn = s.ng.dot(s.ng);
-        if nn.to_array()[0] > 0.0 {
-            // `w · n < 0` is false for `w = n_g` (a sum of squares) and true for `-n_g`
-            // (its negation, exactly, and positive).
-            Some(QuadSamples {
-                plain: offset_ray_origin(s.base, s.p_error, s.ng, s.ng),
-                flipped: offset_ray_origin(s.base, s.p_error, s.ng, s.ng.negated()),
-                faint: if hl.specular == Vec3::ZERO {
-                    0.0
-                } else {
-                    faint_below(hl.shininess)
-                },
-            })
-        } else {
-            None
-        }
+        let (q, accepted) = Self::per_lane(s, hl);
+        (accepted & 1 == 1).then_some(q)
     }
 
     /// [`new`](Self::new) for lanes of different shading points (a pack of points,
@@ -186,6 +172,8 @@ impl QuadSamples {
     #[inline(always)]
     pub fn per_lane(s: &SurfaceLanes, hl: &Highlight) -> (QuadSamples, u32) {
         let nn = s.ng.dot(s.ng).simd_gt(Packet::splat(0.0)).to_bitmask() & 0xffff;
+        // `w · n < 0` is false for `w = n_g` (a sum of squares) and true for `-n_g` (its
+        // negation, exactly, and positive).
         let q = QuadSamples {
             plain: offset_ray_origin(s.base, s.p_error, s.ng, s.ng),
             flipped: offset_ray_origin(s.base, s.p_error, s.ng, s.ng.negated()),

@@ -537,6 +537,22 @@ mod tests {
         }
     }
 
+    /// A one-origin, one-time set of sixteen rays drawn from `draw`: the store, its
+    /// origin as lanes, the directions and the time.
+    #[allow(clippy::type_complexity)]
+    fn uniform_case(
+        draw: &mut impl FnMut() -> f32,
+    ) -> (UniformRays, [[f32; 16]; 3], [[f32; 16]; 3], f32) {
+        let origin = glam::Vec3::new(draw(), draw(), draw());
+        let time = draw();
+        let mut d = [[0.0f32; 16]; 3];
+        for c in d.iter_mut().flatten() {
+            *c = draw();
+        }
+        let o = origin.to_array().map(|c| [c; 16]);
+        (UniformRays::new(origin, time), o, d, time)
+    }
+
     /// [`UniformRays`] gives the plain loop's rays with every origin lane the one
     /// origin and every time lane the one time, bit for bit, for every count 0..=16
     /// of rays appended after rays already in the vector, with NaN, signed zeros,
@@ -548,14 +564,7 @@ mod tests {
         let mut draw = || component(&mut rng);
         for n in 0..=16 {
             for _ in 0..20 {
-                let origin = glam::Vec3::new(draw(), draw(), draw());
-                let time = draw();
-                let store = UniformRays::new(origin, time);
-                let mut d = [[0.0f32; 16]; 3];
-                for c in d.iter_mut().flatten() {
-                    *c = draw();
-                }
-                let o = origin.to_array().map(|c| [c; 16]);
+                let (store, o, d, time) = uniform_case(&mut draw);
                 let head = Ray::new(glam::Vec3::ONE, glam::Vec3::X);
                 let mut want = vec![head; 3];
                 append_plain(
@@ -578,14 +587,7 @@ mod tests {
         let mut rng = PixelRng::new(7, 21);
         let mut draw = || component(&mut rng);
         for _ in 0..50 {
-            let origin = glam::Vec3::new(draw(), draw(), draw());
-            let time = draw();
-            let store = UniformRays::new(origin, time);
-            let mut d = [[0.0f32; 16]; 3];
-            for c in d.iter_mut().flatten() {
-                *c = draw();
-            }
-            let o = origin.to_array().map(|c| [c; 16]);
+            let (store, o, d, time) = uniform_case(&mut draw);
             let mut want = Vec::new();
             append_plain(
                 [&o[0][..], &o[1][..], &o[2][..]],
