@@ -12,7 +12,9 @@ mod triangle;
 pub mod warp;
 
 pub use aabb::{Aabb, ROBUST_FAR_SCALE};
-pub use offset::{SPAWN_TO_ERROR, offset_ray_origin, orthonormal_basis, spawn_ray_to};
+pub use offset::{
+    OffsetOrigins, SPAWN_TO_ERROR, offset_ray_origin, orthonormal_basis, spawn_ray_to,
+};
 pub use plane::{intersect_plane, plane_point};
 pub use ray::{LaneRays, Ray, RayPacket, RayQuery, dominant_axis, octant};
 pub use sphere::{intersect_sphere, sphere_point};

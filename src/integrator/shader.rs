@@ -13,7 +13,7 @@ use super::path_keys::{HitSet, child_path, hit_points};
 use super::sampling::PixelRng;
 use super::sobol::SobolDim;
 use crate::geometry::warp::sample_phong_lobe;
-use crate::geometry::{Ray, offset_ray_origin, spawn_ray_to};
+use crate::geometry::{OffsetOrigins, Ray, offset_ray_origin, spawn_ray_to};
 use crate::scene::{Light, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts};
 use glam::Vec3;
@@ -473,22 +473,21 @@ impl Shader<'_> {
                         &mut points,
                     );
                     drawn.light += n as u64;
-                    for &(u, v) in &points {
-                        let Some(s) = light.sample(si.p, u, v) else {
-                            continue;
-                        };
-                        let Some(f) = reflectance(s.wi) else {
-                            continue;
-                        };
-                        let ray = spawn_ray_to(
-                            base,
-                            si.p_error,
-                            si.n_geometric,
-                            s.point,
-                            s.p_error,
-                            s.normal,
-                        );
-                        shadow(out, ray, s.weight * f / n as f32, index);
+                    // What the samples share (the light's frame or cone as seen from
+                    // the point, the point's two offset origins) once per point: the
+                    // same bits as `Light::sample` and `spawn_ray_to` per sample.
+                    if let Some(view) = light.view(si.p) {
+                        let origins = OffsetOrigins::new(base, si.p_error, si.n_geometric);
+                        for &(u, v) in &points {
+                            let Some(s) = view.sample(si.p, u, v) else {
+                                continue;
+                            };
+                            let Some(f) = reflectance(s.wi) else {
+                                continue;
+                            };
+                            let ray = origins.spawn_ray_to(s.point, s.p_error, s.normal);
+                            shadow(out, ray, s.weight * f / n as f32, index);
+                        }
                     }
                     out.points = points;
                 }

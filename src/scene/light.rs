@@ -72,6 +72,123 @@ pub struct LightSample {
     pub normal: Vec3,
 }
 
+/// An area light as seen from one shading point ([`Light::view`]): what its samples
+/// there share. [`LightView::sample`] with the view's point gives the bits of
+/// [`Light::sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightView {
+    Quad {
+        corner: Vec3,
+        edge1: Vec3,
+        edge2: Vec3,
+        n: Vec3,
+        area: f32,
+        err: Vec3,
+        radiance: Vec3,
+    },
+    Disk {
+        center: Vec3,
+        n: Vec3,
+        t: Vec3,
+        b: Vec3,
+        radius: f32,
+        err: Vec3,
+        radiance: Vec3,
+    },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        to_c: Vec3,
+        dc2: f32,
+        axis: Vec3,
+        one_minus: f32,
+        t: Vec3,
+        b: Vec3,
+        weight: Vec3,
+    },
+}
+
+impl LightView {
+    /// The sample of the view's light at `(u, v)` seen from `p`, the point the view
+    /// was made for (see [`Light::sample`]).
+    pub fn sample(&self, p: Vec3, u: f32, v: f32) -> Option<LightSample> {
+        let towards = |point: Vec3, n: Vec3, area: f32, radiance: Vec3, p_error: Vec3| {
+            let to = point - p;
+            let dist2 = to.length_squared();
+            let dist = dist2.sqrt();
+            let wi = to / dist;
+            let cos_l = -wi.dot(n);
+            (cos_l > 0.0 && dist > 0.0).then(|| LightSample {
+                wi,
+                dist,
+                weight: radiance * (cos_l * area / dist2),
+                point,
+                p_error,
+                normal: n,
+            })
+        };
+        match *self {
+            LightView::Quad {
+                corner,
+                edge1,
+                edge2,
+                n,
+                area,
+                err,
+                radiance,
+            } => towards(corner + u * edge1 + v * edge2, n, area, radiance, err),
+            LightView::Disk {
+                center,
+                n,
+                t,
+                b,
+                radius,
+                err,
+                radiance,
+            } => {
+                let d = concentric_disk(u, v) * radius;
+                towards(
+                    center + d.x * t + d.y * b,
+                    n,
+                    PI * radius * radius,
+                    radiance,
+                    err,
+                )
+            }
+            LightView::Sphere {
+                center,
+                radius,
+                to_c,
+                dc2,
+                axis,
+                one_minus,
+                t,
+                b,
+                weight,
+            } => {
+                let cos = 1.0 - u * one_minus;
+                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                let phi = TAU * v;
+                let wi = (sin * phi.cos() * t + sin * phi.sin() * b + cos * axis).normalize();
+                // Nearer root of |p + s wi - c| = r; at grazing directions the
+                // discriminant may round below zero: use the closest approach.
+                let proj = wi.dot(to_c);
+                let disc = radius * radius - (dc2 - proj * proj);
+                let dist = proj - disc.max(0.0).sqrt();
+                let (point, p_error, normal) = sphere_point(center, radius, p + dist * wi);
+                Some(LightSample {
+                    wi,
+                    dist,
+                    weight,
+                    point,
+                    p_error,
+                    normal,
+                })
+            }
+        }
+    }
+}
+
 impl Light {
     pub fn is_area(&self) -> bool {
         matches!(
@@ -95,21 +212,14 @@ impl Light {
     /// margin (proportional to the segment length) does not see. A sphere sample is
     /// reprojected onto the sphere ([`sphere_point`](crate::geometry::sphere_point)).
     pub fn sample(&self, p: Vec3, u: f32, v: f32) -> Option<LightSample> {
-        let towards = |point: Vec3, n: Vec3, area: f32, radiance: Vec3, p_error: Vec3| {
-            let to = point - p;
-            let dist2 = to.length_squared();
-            let dist = dist2.sqrt();
-            let wi = to / dist;
-            let cos_l = -wi.dot(n);
-            (cos_l > 0.0 && dist > 0.0).then(|| LightSample {
-                wi,
-                dist,
-                weight: radiance * (cos_l * area / dist2),
-                point,
-                p_error,
-                normal: n,
-            })
-        };
+        self.view(p)?.sample(p, u, v)
+    }
+
+    /// The part of [`Light::sample`] that depends on the light and the shading point
+    /// only, computed once for all of a point's samples (a disk's frame, a sphere's
+    /// cone). `None` for a light that is not an area light, and for a point inside a
+    /// sphere light.
+    pub fn view(&self, p: Vec3) -> Option<LightView> {
         match *self {
             Light::Point { .. } | Light::Directional { .. } | Light::Spot { .. } => None,
             Light::Quad {
@@ -120,14 +230,15 @@ impl Light {
             } => {
                 let c = edge1.cross(edge2);
                 let area = c.length();
-                let err = gamma(32) * (corner.abs() + edge1.abs() + edge2.abs());
-                towards(
-                    corner + u * edge1 + v * edge2,
-                    c / area,
+                Some(LightView::Quad {
+                    corner,
+                    edge1,
+                    edge2,
+                    n: c / area,
                     area,
+                    err: gamma(32) * (corner.abs() + edge1.abs() + edge2.abs()),
                     radiance,
-                    err,
-                )
+                })
             }
             Light::Disk {
                 center,
@@ -137,15 +248,15 @@ impl Light {
             } => {
                 let n = normal.normalize();
                 let (t, b) = crate::geometry::orthonormal_basis(n);
-                let d = concentric_disk(u, v) * radius;
-                let err = gamma(32) * (center.abs() + radius * (t.abs() + b.abs()));
-                towards(
-                    center + d.x * t + d.y * b,
+                Some(LightView::Disk {
+                    center,
                     n,
-                    PI * radius * radius,
+                    t,
+                    b,
+                    radius,
+                    err: gamma(32) * (center.abs() + radius * (t.abs() + b.abs())),
                     radiance,
-                    err,
-                )
+                })
             }
             Light::Sphere {
                 center,
@@ -163,24 +274,17 @@ impl Light {
                 let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
                 // 1 - cosθmax without cancellation for small, distant spheres.
                 let one_minus = sin2_max / (1.0 + cos_max);
-                let cos = 1.0 - u * one_minus;
-                let sin = (1.0 - cos * cos).max(0.0).sqrt();
-                let phi = TAU * v;
                 let (t, b) = crate::geometry::orthonormal_basis(axis);
-                let wi = (sin * phi.cos() * t + sin * phi.sin() * b + cos * axis).normalize();
-                // Nearer root of |p + s wi - c| = r; at grazing directions the
-                // discriminant may round below zero: use the closest approach.
-                let proj = wi.dot(to_c);
-                let disc = radius * radius - (dc2 - proj * proj);
-                let dist = proj - disc.max(0.0).sqrt();
-                let (point, p_error, normal) = sphere_point(center, radius, p + dist * wi);
-                Some(LightSample {
-                    wi,
-                    dist,
+                Some(LightView::Sphere {
+                    center,
+                    radius,
+                    to_c,
+                    dc2,
+                    axis,
+                    one_minus,
+                    t,
+                    b,
                     weight: radiance * (TAU * one_minus),
-                    point,
-                    p_error,
-                    normal,
                 })
             }
         }
