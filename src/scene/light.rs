@@ -95,17 +95,7 @@ pub enum LightView {
         err: Vec3,
         radiance: Vec3,
     },
-    Sphere {
-        center: Vec3,
-        radius: f32,
-        to_c: Vec3,
-        dc2: f32,
-        axis: Vec3,
-        one_minus: f32,
-        t: Vec3,
-        b: Vec3,
-        weight: Vec3,
-    },
+    Sphere(SphereView),
 }
 
 impl LightView {
@@ -155,37 +145,50 @@ impl LightView {
                     err,
                 )
             }
-            LightView::Sphere {
-                center,
-                radius,
-                to_c,
-                dc2,
-                axis,
-                one_minus,
-                t,
-                b,
-                weight,
-            } => {
-                let cos = 1.0 - u * one_minus;
-                let sin = (1.0 - cos * cos).max(0.0).sqrt();
-                let phi = TAU * v;
-                let wi = (sin * phi.cos() * t + sin * phi.sin() * b + cos * axis).normalize();
-                // Nearer root of |p + s wi - c| = r; at grazing directions the
-                // discriminant may round below zero: use the closest approach.
-                let proj = wi.dot(to_c);
-                let disc = radius * radius - (dc2 - proj * proj);
-                let dist = proj - disc.max(0.0).sqrt();
-                let (point, p_error, normal) = sphere_point(center, radius, p + dist * wi);
-                Some(LightSample {
-                    wi,
-                    dist,
-                    weight,
-                    point,
-                    p_error,
-                    normal,
-                })
-            }
+            LightView::Sphere(c) => c.sample(p, u, v),
         }
+    }
+}
+
+/// A sphere light as seen from a point outside it: the cone it subtends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereView {
+    center: Vec3,
+    radius: f32,
+    /// From the point to the centre, its squared length, and its direction.
+    to_c: Vec3,
+    dc2: f32,
+    axis: Vec3,
+    /// `1 - cos θmax` of the cone, and a basis around its axis.
+    one_minus: f32,
+    t: Vec3,
+    b: Vec3,
+    /// Radiance over the cone's density in solid angle.
+    weight: Vec3,
+}
+
+impl SphereView {
+    fn sample(&self, p: Vec3, u: f32, v: f32) -> Option<LightSample> {
+        let (to_c, radius) = (self.to_c, self.radius);
+        let cos = 1.0 - u * self.one_minus;
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        let phi = TAU * v;
+        let wi =
+            (sin * phi.cos() * self.t + sin * phi.sin() * self.b + cos * self.axis).normalize();
+        // Nearer root of |p + s wi - c| = r; at grazing directions the
+        // discriminant may round below zero: use the closest approach.
+        let proj = wi.dot(to_c);
+        let disc = radius * radius - (self.dc2 - proj * proj);
+        let dist = proj - disc.max(0.0).sqrt();
+        let (point, p_error, normal) = sphere_point(self.center, radius, p + dist * wi);
+        Some(LightSample {
+            wi,
+            dist,
+            weight: self.weight,
+            point,
+            p_error,
+            normal,
+        })
     }
 }
 
@@ -275,7 +278,7 @@ impl Light {
                 // 1 - cosθmax without cancellation for small, distant spheres.
                 let one_minus = sin2_max / (1.0 + cos_max);
                 let (t, b) = crate::geometry::orthonormal_basis(axis);
-                Some(LightView::Sphere {
+                Some(LightView::Sphere(SphereView {
                     center,
                     radius,
                     to_c,
@@ -285,7 +288,7 @@ impl Light {
                     t,
                     b,
                     weight: radiance * (TAU * one_minus),
-                })
+                }))
             }
         }
     }

@@ -36,7 +36,7 @@ pub use environment::{
 };
 pub use features::Features;
 pub use instance::{Affine, Instance, InstanceSet, SurfacePoint};
-pub use light::{Light, LightSample, LightView};
+pub use light::{Light, LightSample, LightView, SphereView};
 pub use material::{CHECKER_INSET, Checker, Material};
 pub use mesh::TriangleMesh;
 pub use motion::MotionSet;
