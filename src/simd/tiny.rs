@@ -491,8 +491,9 @@ fn mul_exact(a: f64, b: f64) -> (f64, bool) {
 /// sign(w_k)`; added to `±0` it is `s`. Exact or not, the answer is that sign: where the
 /// exactness flags hold `side_f64` returns it; elsewhere it compares `s` with
 /// `margin = 1e-12 terms_k |w_k|` (three roundings, each at most `1 + 2^-53`, none
-/// overflowing: `terms_k <= |n_k| / 2e-12 < 2^840`), and `|s| >= |n_k| |w_k| (1 - 2^-53)
-/// >= 2e-12 terms_k |w_k| (1 - 2^-53) > margin` (or `margin = 0 < |s|`). A test compares
+/// overflowing: `terms_k <= |n_k| / 2e-12 < 2^840`), and `|s|` is at least
+/// `|n_k| |w_k| (1 - 2^-53)`, so at least `2e-12 terms_k |w_k| (1 - 2^-53)`, more than
+/// `margin` (or `margin = 0 < |s|`). A test compares
 /// both on planes of every axis and origins near, far and level.
 fn axis_of(n: &[f64; 3], terms: &[f64; 3]) -> Option<(usize, f32)> {
     let k = (0..3).find(|&k| n[k] != 0.0)?;
