@@ -104,6 +104,27 @@
 //! `decorrelate_pairs`: sampling.rs), `TrianglePlane::side` 5 % (one exact f64 side
 //! test per point's origin; a box of a group's origins tested at its two extreme
 //! corners would serve 16 points, not tried), the camera's `block_rays` 7.5 %.
+//!
+//! Then (branch `area17`; images byte-identical against the previous binary on 30
+//! PNGs: the 13 scenes, dof_area at 1 and 2 threads with 1, 3, 4 and 9 light samples,
+//! whitted_area64, blur16, bunny, whitted_base, area_lights on a BVH2, dof_area
+//! recursive): perf of dof_area 640x480 (1 thread, AVX-512) before: `shade_quads_packed`
+//! 35.3 %, `append_2d_split` 10.7 % (9 of them the light points), `TrianglePlane::side`
+//! 5.3 %, `fill_2d` 2.2 %, `hit_points_append` 1.4 %. A pack's square jittered light
+//! points are drawn in one lane group, each point's from its stream
+//! (`simd::jittered_pack::PackLayout`: 32 draws of the pack's streams in lanes, where
+//! each point's `append_2d_split` drew 32 for its 8, and a `jittered_block` whose row
+//! wrap looped eight times for `k = 2`); a plane of constant coordinate answers `side`
+//! by an f32 comparison (`TrianglePlane::axis_side`, proved to give the f64 test's
+//! answer; the floor's level origins too); `fill_2d`'s square jittered sets (the
+//! camera's pixel positions) in lanes. After: `shade_quads_packed` 43.5 % of fewer
+//! samples (the draws inlined there), `side` and `append_2d_split`'s light part gone,
+//! `fill_2d` 1.3 %; samples in the stages touched 13.1 k -> 9.7 k of 25.7 k. A first
+//! try made the `PackLayout` per pack: 3.6 % of the frame (now once per sample count).
+//! Timed (render phase, `--stats-json`, interleaved with the previous binary, flock'd,
+//! host loaded 5-8 by other builds on 2 cores, min / median / max ms): dof_area 9 rounds
+//! 301/348/682 -> 258/292/414 (median -16 %), another 9 rounds 300/398/747 ->
+//! 266/358/452 (-10 %); 640x480 5 rounds 1421/1836/2357 -> 1159/1444/1893 (-21 %).
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_append, hit_points_split, path_rng};
