@@ -104,15 +104,37 @@
 //! `decorrelate_pairs`: sampling.rs), `TrianglePlane::side` 5 % (one exact f64 side
 //! test per point's origin; a box of a group's origins tested at its two extreme
 //! corners would serve 16 points, not tried), the camera's `block_rays` 7.5 %.
+//!
+//! Then (branch `area17`; images byte-identical against the previous binary on 30
+//! PNGs: the 13 scenes, dof_area at 1 and 2 threads with 1, 3, 4 and 9 light samples,
+//! whitted_area64, blur16, bunny, whitted_base, area_lights on a BVH2, dof_area
+//! recursive): perf of dof_area 640x480 (1 thread, AVX-512) before: `shade_quads_packed`
+//! 35.3 %, `append_2d_split` 10.7 % (9 of them the light points), `TrianglePlane::side`
+//! 5.3 %, `fill_2d` 2.2 %, `hit_points_append` 1.4 %. A pack's square jittered light
+//! points are drawn in one lane group, each point's from its stream
+//! (`simd::jittered_pack::PackLayout`: 32 draws of the pack's streams in lanes, where
+//! each point's `append_2d_split` drew 32 for its 8, and a `jittered_block` whose row
+//! wrap looped eight times for `k = 2`); a plane of constant coordinate answers `side`
+//! by an f32 comparison (`TrianglePlane::axis_side`, proved to give the f64 test's
+//! answer; the floor's level origins too); `fill_2d`'s square jittered sets (the
+//! camera's pixel positions) in lanes. After: `shade_quads_packed` 43.5 % of fewer
+//! samples (the draws inlined there), `side` and `append_2d_split`'s light part gone,
+//! `fill_2d` 1.3 %; samples in the stages touched 13.1 k -> 9.7 k of 25.7 k. A first
+//! try made the `PackLayout` per pack: 3.6 % of the frame (now once per sample count).
+//! Timed (render phase, `--stats-json`, interleaved with the previous binary, flock'd,
+//! host loaded 5-8 by other builds on 2 cores, min / median / max ms): dof_area 9 rounds
+//! 301/348/682 -> 258/292/414 (median -16 %), another 9 rounds 300/398/747 ->
+//! 266/358/452 (-10 %); 640x480 5 rounds 1421/1836/2357 -> 1159/1444/1893 (-21 %).
 
 use super::hit_batch::HitBatch;
-use super::path_keys::{HitSet, hit_points_append, hit_points_split};
-use super::sampling::PixelRng;
+use super::path_keys::{HitSet, hit_points_append, hit_points_split, path_rng};
+use super::sampling::{PixelRng, SamplerKind};
 use super::shade_stage::{LanePaths, Sinks, push_shadow};
 use super::shader::Shader;
 use super::sobol::SobolDim;
 use super::tiny_shadow::{GroupCull, LaneOccluders, SegmentSides, SphereBits};
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
+use crate::simd::jittered_pack::PackLayout;
 use crate::simd::lanes3::V3;
 use crate::simd::quad_samples::{OriginBox, QuadSamples, block_sums, spread};
 use crate::simd::{Lanes, Packet};
@@ -146,6 +168,8 @@ pub(crate) struct LightPoints {
     /// bits, and per point and light (point-major) its sum where a sample passed.
     near: Vec<SphereBits>,
     pub totals: Vec<Option<Vec3>>,
+    /// The lane layout of a pack's light points for (samples, stride), made once.
+    layout: Option<((u32, usize), Option<PackLayout>)>,
 }
 
 /// The lanes per shading point of a pack ([`shade_quads_packed`]) for `samples` light
@@ -424,6 +448,20 @@ pub(crate) fn shade_quads_packed(
         first = false;
     }
     let plan = &shader.plan;
+    // `hit_points_append` draws a square jittered set (the default sampler's light
+    // points) by `append_2d_split`, whatever the depth.
+    //
+    // Measured: made per pack, `PackLayout::new` was 3.6 % of the frame (perf).
+    let key = (samples as u32, stride);
+    let layout = match points.layout {
+        Some((k, layout)) if k == key => layout,
+        _ => {
+            let layout = PackLayout::new(samples as u32, stride);
+            points.layout = Some((key, layout));
+            layout
+        }
+    }
+    .filter(|_| plan.sampler == SamplerKind::Jittered);
     let bases: [Vec3; 16] = std::array::from_fn(|j| batch.base.get(k0 + j.min(n - 1)));
     for (i, (index, quad)) in quads.lights.iter().enumerate() {
         let near = occluders.spheres_near_points(
@@ -431,31 +469,51 @@ pub(crate) fn shade_quads_packed(
             points.near[i],
             quad,
         );
-        // Each point's light points appended at its block of lanes (zeros between and
-        // after, as `hit_points_split` pads).
-        let (u, v) = (&mut points.u, &mut points.v);
-        u.clear();
-        v.clear();
-        for (j, h) in pts.iter().enumerate() {
-            if left >> j & 1 == 1 {
-                continue;
+        let (u, v) = match &layout {
+            // A square jittered set per point: the pack's draws in lanes, each point's
+            // from its stream (`PackLayout`, the loop below bit for bit).
+            Some(layout) => {
+                let mut states = [0u64; 16];
+                for (j, h) in pts.iter().enumerate() {
+                    if left >> j & 1 == 1 {
+                        continue;
+                    }
+                    let set = h.light_set(shader.seed, *index);
+                    let rng =
+                        streams[j].get_or_insert_with(|| path_rng(set.seed, set.pixel, set.path));
+                    states[j & 15] = rng.skip_pairs(samples as u32);
+                    sinks.drawn.light += samples as u64;
+                }
+                layout.points(&states, !left & ((1u32 << n) - 1))
             }
-            u.resize(j * stride, 0.0);
-            v.resize(j * stride, 0.0);
-            hit_points_append(
-                plan.sampler,
-                h.light_set(shader.seed, *index),
-                samples as u32,
-                &mut streams[j],
-                (u, v),
-                &mut points.pairs,
-            );
-            sinks.drawn.light += samples as u64;
-        }
-        u.resize(16, 0.0);
-        v.resize(16, 0.0);
-        let lane = |a: &[f32]| Packet::new(a[..16].try_into().expect("16 lanes"));
-        let (u, v) = (lane(u), lane(v));
+            None => {
+                // Each point's light points appended at its block of lanes (zeros
+                // between and after, as `hit_points_split` pads).
+                let (u, v) = (&mut points.u, &mut points.v);
+                u.clear();
+                v.clear();
+                for (j, h) in pts.iter().enumerate() {
+                    if left >> j & 1 == 1 {
+                        continue;
+                    }
+                    u.resize(j * stride, 0.0);
+                    v.resize(j * stride, 0.0);
+                    hit_points_append(
+                        plan.sampler,
+                        h.light_set(shader.seed, *index),
+                        samples as u32,
+                        &mut streams[j],
+                        (u, v),
+                        &mut points.pairs,
+                    );
+                    sinks.drawn.light += samples as u64;
+                }
+                u.resize(16, 0.0);
+                v.resize(16, 0.0);
+                let lane = |a: &[f32]| Packet::new(a[..16].try_into().expect("16 lanes"));
+                (lane(u), lane(v))
+            }
+        };
         let sl = fast.lanes(&s, &hl, quad, u, v, samples as f32, active);
         let live = sl.mask & 0xffff;
         if live == 0 {

@@ -200,12 +200,24 @@ pub fn fill_2d(
             if n == 1 && centre_single {
                 out.push((0.5, 0.5));
             } else if k * k == n {
+                // In lanes, sixteen points at a time (`append_2d_split`'s blocks; the
+                // scalar loop, `jittered_square_scalar`, is the tests' oracle).
+                //
+                // Measured (dof_area 640x480, 1 thread, AVX-512, perf): the scalar loop
+                // was 2.3 % of the frame (the camera's 16 pixel positions per pixel).
                 let inv = 1.0 / k as f32;
-                for j in 0..k {
-                    for i in 0..k {
-                        let (u, v) = (rng.next_f32(), rng.next_f32());
-                        out.push(((i as f32 + u) * inv, (j as f32 + v) * inv));
-                    }
+                let (mut i, mut j) = (0u32, 0u32);
+                let (mut du, mut dv) = ([0.0f32; 16], [0.0f32; 16]);
+                let mut left = n as usize;
+                out.reserve(left);
+                while left > 0 {
+                    let m = left.min(16);
+                    rng.fill_pairs16(m, &mut du, &mut dv);
+                    let (lu, lv) = crate::simd::jittered::jittered_block((i, j, k), inv, &du, &dv);
+                    out.extend(lu[..m].iter().copied().zip(lv[..m].iter().copied()));
+                    let next = i + m as u32;
+                    (i, j) = (next % k, j + next / k);
+                    left -= m;
                 }
             } else {
                 // N-rooks: n jittered strata in x paired with a permutation of n in y.
@@ -503,6 +515,19 @@ impl PixelRng {
             .wrapping_add((2 * m as u64).wrapping_mul(GOLDEN_GAMMA));
     }
 
+    /// The state before the next `m` pairs of draws, the stream advanced past them:
+    /// for a caller that computes the draws elsewhere (`simd::jittered_pack`, the light
+    /// points of several streams in one lane group), as [`fill_pairs16`](Self::fill_pairs16)
+    /// advances it.
+    #[inline]
+    pub fn skip_pairs(&mut self, m: u32) -> u64 {
+        let state = self.state;
+        self.state = self
+            .state
+            .wrapping_add((2 * m as u64).wrapping_mul(GOLDEN_GAMMA));
+        state
+    }
+
     /// The swap targets of a Fisher-Yates shuffle of sixteen items, as [`shuffle_by`]
     /// draws them (`below(i + 1)` for `i` from 15 down to 1: entry `m` is step `m`'s),
     /// computed in lanes where the build has AVX-512DQ (`simd::splitmix`, bit for bit);
@@ -589,6 +614,59 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The square jittered set as `fill_2d` drew it before its lanes: row by row, two
+    /// `next_f32` draws per point.
+    fn jittered_square_scalar(k: u32, rng: &mut PixelRng, out: &mut Vec<(f32, f32)>) {
+        out.clear();
+        let inv = 1.0 / k as f32;
+        for j in 0..k {
+            for i in 0..k {
+                let (u, v) = (rng.next_f32(), rng.next_f32());
+                out.push(((i as f32 + u) * inv, (j as f32 + v) * inv));
+            }
+        }
+    }
+
+    /// [`fill_2d`]'s square jittered sets (in lanes) are the scalar loop's, bit for
+    /// bit, with the stream left where it leaves it: sides 1 to 20 and 33, many
+    /// streams, both `centre_single` (a single point at the centre aside).
+    #[test]
+    fn jittered_squares_equal_the_scalar_loop() {
+        let mut checked = 0;
+        for k in (1u32..=20).chain([33]) {
+            for seed in 0..40u64 {
+                for centre in [false, true] {
+                    if k == 1 && centre {
+                        continue;
+                    }
+                    let (mut a, mut b) =
+                        (PixelRng::new(seed, k as u64), PixelRng::new(seed, k as u64));
+                    let (mut got, mut want) = (Vec::new(), Vec::new());
+                    fill_2d(
+                        SamplerKind::Jittered,
+                        k * k,
+                        Dimension::Pixel,
+                        centre,
+                        &mut a,
+                        &mut got,
+                    );
+                    jittered_square_scalar(k, &mut b, &mut want);
+                    assert_eq!(got.len(), want.len());
+                    for (g, w) in got.iter().zip(&want) {
+                        assert_eq!(
+                            (g.0.to_bits(), g.1.to_bits()),
+                            (w.0.to_bits(), w.1.to_bits()),
+                            "k {k} seed {seed}"
+                        );
+                        checked += 1;
+                    }
+                    assert_eq!(a.state(), b.state(), "k {k} seed {seed}");
+                }
+            }
+        }
+        assert!(checked > 50_000, "{checked}");
     }
 
     /// [`append_2d_split`] appends [`fill_2d`]'s points (`centre_single` false) bit for

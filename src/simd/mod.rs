@@ -18,6 +18,7 @@ pub mod direct_light;
 pub mod exact_sums;
 pub mod glass_shadow;
 pub mod jittered;
+pub mod jittered_pack;
 pub mod kernels;
 pub mod lane_rays;
 mod lanes;

@@ -120,6 +120,47 @@ unsafe fn unit_pairs16_avx512(state: u64, u: &mut [f32; 16], v: &mut [f32; 16]) 
     }
 }
 
+/// Sixteen draws of sixteen streams at once: lane `l` is the `PixelRng::next_f32` draw
+/// whose advanced state (the stream's state plus `(m + 1) γ` for its draw `m`) is
+/// `z[l]`, bit for bit (the top 24 bits of the unfinished mix times `2^-24`). What
+/// [`unit_pairs16`] computes for one stream, for lanes of different streams: the light
+/// points of a pack of shading points, each with its own stream
+/// (`integrator::area_light::shade_quads_packed`, `simd::jittered_pack`).
+#[inline]
+pub fn unit_draws16(z: &[u64; 16]) -> [f32; 16] {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512dq"))]
+    {
+        let mut out = [0.0f32; 16];
+        // SAFETY: AVX-512F/DQ are enabled at compile time; the loads read `z` and the
+        // stores write `out` exactly, each in two 8-element halves.
+        unsafe {
+            use std::arch::x86_64::*;
+            let c1 = _mm512_set1_epi64(MIX1 as i64);
+            let c2 = _mm512_set1_epi64(MIX2 as i64);
+            let scale = _mm256_set1_ps(1.0 / (1u32 << 24) as f32);
+            for h in 0..2 {
+                let mut v = _mm512_loadu_si512(z.as_ptr().add(8 * h).cast());
+                v = _mm512_mullo_epi64(_mm512_xor_si512(v, _mm512_srli_epi64::<30>(v)), c1);
+                v = _mm512_mullo_epi64(_mm512_xor_si512(v, _mm512_srli_epi64::<27>(v)), c2);
+                let f = _mm512_cvtepi64_ps(_mm512_srli_epi64::<40>(v));
+                _mm256_storeu_ps(out.as_mut_ptr().add(8 * h), _mm256_mul_ps(f, scale));
+            }
+        }
+        out
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512dq")))]
+    {
+        unit_draws16_scalar(z)
+    }
+}
+
+/// The scalar twin of [`unit_draws16`].
+#[inline]
+pub fn unit_draws16_scalar(z: &[u64; 16]) -> [f32; 16] {
+    // `mix_unfinished` of draw 0 after `z - γ` mixes `z` itself.
+    z.map(|z| draw(z.wrapping_sub(GAMMA), 0))
+}
+
 /// The swap targets of a Fisher-Yates shuffle of `n <= 16` items (the scalar
 /// oracle: `integrator::sampling::shuffle_by`, which draws `PixelRng::below(i + 1)` for
 /// `i` from `n - 1` down to 1): `j[m]` is the target of step `m`, item `i = n - 1 - m`,
@@ -212,6 +253,46 @@ mod tests {
                     assert_eq!(lanes[m], want, "case {case} n {n} step {m}");
                     assert_eq!(scalar[m], want, "case {case} n {n} scalar step {m}");
                 }
+            }
+        }
+    }
+
+    /// [`unit_draws16`] and its scalar twin against `PixelRng::next_f32` of sixteen
+    /// streams, bit for bit: lane `l` holds draw `m_l` (0 to 31) of stream `l`, the
+    /// advanced states given; random streams and states near the wrap.
+    #[test]
+    fn draws_of_sixteen_streams_are_each_streams_draw() {
+        let mut next = xorshift64(0x2545_f491_4f6c_dd1d);
+        for case in 0..20_000 {
+            let mut z = [0u64; 16];
+            let mut want = [0.0f32; 16];
+            for l in 0..16 {
+                let state = if case % 53 == 0 {
+                    u64::MAX.wrapping_sub((next() % 64).wrapping_mul(GAMMA))
+                } else {
+                    next()
+                };
+                let m = next() % 32;
+                let mut r = PixelRng::from_state(state);
+                for _ in 0..m {
+                    r.next_f32();
+                }
+                want[l] = r.next_f32();
+                z[l] = state.wrapping_add((m + 1).wrapping_mul(GAMMA));
+            }
+            let lanes = unit_draws16(&z);
+            let scalar = unit_draws16_scalar(&z);
+            for l in 0..16 {
+                assert_eq!(
+                    lanes[l].to_bits(),
+                    want[l].to_bits(),
+                    "case {case} lane {l}"
+                );
+                assert_eq!(
+                    scalar[l].to_bits(),
+                    want[l].to_bits(),
+                    "case {case} lane {l}"
+                );
             }
         }
     }
