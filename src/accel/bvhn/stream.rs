@@ -31,6 +31,13 @@
 //! - Sorting a bin's rays by origin or direction keys was not tried on purpose: which
 //!   rays enter a node does not depend on their order in the list, and a bin of a band
 //!   (about a thousand rays) fits in L2, so the order only moves gathers within L2.
+//! - Two rays per 512-bit register in the node test (8 children x 2 rays), not tried:
+//!   the node-test loop is 23-24 % of `stream`'s samples (bunny and 10^6 triangles,
+//!   AVX-512, `perf annotate`), 28 instructions a ray, its 11 ray values broadcast
+//!   straight from the 64-byte record as memory operands. Pairing halves the 21
+//!   arithmetic operations per ray but needs a two-source permute per ray value (11 a
+//!   pair, all on one port), and 512-bit operations issue on two ports where 256-bit
+//!   ones issue on three, so the loop's throughput bound stays about the same.
 //! - Primary and shadow rays: their 16-ray packets (`packet.rs`, one node test for 16
 //!   rays, one triangle test for 16 rays) stay 2x faster than this one-ray-per-test
 //!   kernel (bunny primary 53.8 against 24.8), so `SceneAccel` streams only batches
@@ -44,7 +51,7 @@ use super::node::{NodeWidth, WideNode, Width, is_leaf};
 use super::stack::insert_far_to_near;
 use super::tree::Bvh;
 use crate::accel::Primitives;
-use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, octant};
+use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, dominant_axis, octant};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use crate::simd::prefetch::prefetch;
@@ -113,7 +120,7 @@ struct Entry {
 #[derive(Default)]
 struct Scratch {
     rays: Vec<StreamRay>,
-    /// The query of each ray of the caller's batch, in its order.
+    /// The query of each binned ray.
     queries: Vec<RayQuery>,
     /// Index in the caller's batch of each binned ray.
     index: Vec<u32>,
@@ -132,52 +139,65 @@ thread_local! {
 }
 
 impl Scratch {
-    /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index`; returns the
-    /// first binned ray of each octant (and the end).
+    /// Bins the valid rays of `rays` by octant into `rays`/`queries`/`index` (all three
+    /// in bin order); returns the first binned ray of each octant (and the end).
     fn bin(&mut self, rays: &[Ray], fma: bool, root: &[[f32; 3]; 2]) -> [u32; 9] {
-        // Each query is built once, in the caller's order (an invalid ray gets a
-        // placeholder no binned ray refers to); then a counting sort by octant (the
-        // direction's sign bits, which are the reciprocal's: 1/(-0.0) is -inf) places
-        // the node-test records. Building the queries straight into their bin slots
-        // (after a pre-fill) measured the same: 6.79-7.22 against 6.68-7.05 Mrays/s on
-        // the bunny's diffuse rays, interleaved runs.
+        // A counting sort by octant (the direction's sign bits, which are the
+        // reciprocal's: 1/(-0.0) is -inf; 8 for an invalid ray, which `RayQuery::new`
+        // rejects), then each valid ray's query and node-test record built straight into
+        // its bin slot by `query_of`, `RayQuery::new`'s arithmetic inlined.
+        //
+        // Why: the former form built every query in the caller's order by calling
+        // `RayQuery::new` (not inlined there), whose `Option<RayQuery>` came back through
+        // the stack and was copied with 32-byte loads spanning the callee's 4-byte stores
+        // (a failed store forward per load), and then read the queries back with a
+        // `vgatherdps` to fill the records: `perf annotate` of `examples/stream_profile
+        // bunny.obj bvh8-stream diffuse 15` (AVX-512) put `Scratch::bin` at 10.6 % of
+        // all samples and `RayQuery::new` at 1.9 %, 59 % of `bin`'s samples on the
+        // copy's loads and stores and the gather. Queries in bin order also spare the
+        // leaf tests the `index` indirection. After: `bin` 9.1 % of the same profile's
+        // samples (against 12.5 % for `bin` and `RayQuery::new` before; `stream` and
+        // `closest_from` 56.4 % against 56.3 %); on the 10^6-triangle mesh
+        // (`stream_profile 1000000`) 4.4 % against 4.5 %, the records' stores missing
+        // the cache there. An earlier form that built the queries in their bin slots
+        // (after a pre-fill, still through the `RayQuery::new` call) measured the same
+        // as the caller-order one: 6.79-7.22 against 6.68-7.05 Mrays/s.
         let keys = &mut self.order;
         keys.clear();
-        self.queries.clear();
         let mut count = [0u32; 10];
-        let mut placeholder = None;
         for r in rays {
-            let (k, q) = match RayQuery::new(r) {
-                Some(q) => {
-                    let k = octant(r.dir) as u32;
-                    placeholder = Some(q);
-                    (k, q)
-                }
-                None => match placeholder {
-                    Some(q) => (8, q),
-                    None => (8, Self::placeholder()),
-                },
+            let k = if r.is_valid() {
+                octant(r.dir) as u32
+            } else {
+                8
             };
             count[k as usize + 1] += 1;
             keys.push(k);
-            self.queries.push(q);
         }
         for o in 0..9 {
             count[o + 1] += count[o];
         }
         let n = count[8] as usize;
         let mut next = count;
-        self.rays.clear();
-        self.rays.resize(n, StreamRay::default());
+        // Grown when short, never refilled: every slot below `n` is written below.
+        if self.rays.len() < n {
+            self.rays.resize(n, StreamRay::default());
+        }
+        self.rays.truncate(n);
+        if self.queries.len() < n {
+            self.queries.resize(n, Self::placeholder());
+        }
+        self.queries.truncate(n);
         self.index.clear();
         self.index.resize(n, 0);
-        for (i, (q, &k)) in self.queries.iter().zip(keys.iter()).enumerate() {
+        for (i, (r, &k)) in rays.iter().zip(keys.iter()).enumerate() {
             if k == 8 {
                 continue;
             }
             let s = next[k as usize] as usize;
             next[k as usize] += 1;
             self.index[s] = i as u32;
+            let q = query_of(r);
             self.rays[s] = if fma {
                 let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
                 let kz = q.kz;
@@ -202,6 +222,7 @@ impl Scratch {
                     ..StreamRay::default()
                 }
             };
+            self.queries[s] = q;
         }
         self.best.clear();
         self.best.resize(n, None);
@@ -213,19 +234,44 @@ impl Scratch {
     /// Prefetches the query of binned ray `id` (its two cache lines).
     #[inline(always)]
     fn prefetch_query(&self, id: u32) {
-        if let Some(q) = self
-            .index
-            .get(id as usize)
-            .and_then(|&i| self.queries.get(i as usize))
-        {
+        if let Some(q) = self.queries.get(id as usize) {
             prefetch(q, 2);
         }
     }
 
-    /// A query for an invalid ray's slot in `queries` (never read).
+    /// A query to fill `queries` with as it grows (every slot is overwritten).
     #[cold]
     fn placeholder() -> RayQuery {
         RayQuery::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X)).expect("a valid ray")
+    }
+}
+
+/// `RayQuery::new(r)` of a valid ray `r`, the same operations, inlined into the
+/// binning loop so the query is built in its slot (test
+/// `query_of_is_ray_query_new_bit_for_bit`).
+#[inline(always)]
+fn query_of(ray: &Ray) -> RayQuery {
+    /// The axis after `k`, cyclically, and the one after that.
+    const NEXT: [[usize; 2]; 3] = [[1, 2], [2, 0], [0, 1]];
+    let d = ray.dir.to_array();
+    let inv_dir = glam::Vec3::ONE / ray.dir;
+    let kz = dominant_axis(ray.dir);
+    let [a, b] = NEXT[kz];
+    let (kx, ky) = if d[kz] < 0.0 { (b, a) } else { (a, b) };
+    let sz = inv_dir.to_array()[kz];
+    RayQuery {
+        origin: ray.origin,
+        dir: ray.dir,
+        inv_dir,
+        tmin: ray.tmin,
+        tmax: ray.tmax,
+        time: ray.time,
+        kx,
+        ky,
+        kz,
+        sx: d[kx] * sz,
+        sy: d[ky] * sz,
+        sz,
     }
 }
 
@@ -417,7 +463,7 @@ where
     /// deriving them again (`closest_from` would).
     #[inline(always)]
     fn finish<const ANY: bool, const FMA: bool>(&self, s: &mut Scratch, id: usize, node: u32) {
-        let q = &s.queries[s.index[id] as usize];
+        let q = &s.queries[id];
         let r = &s.rays[id];
         let fma_ray = || {
             let axes = [0, 1, 2].map(|a| FmaAxis {
@@ -520,4 +566,108 @@ pub fn incoherent_batch(rays: &[Ray]) -> bool {
         })
         .count();
     2 * incoherent > rays.len().div_ceil(crate::simd::PACKET_WIDTH)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::Triangles;
+    use crate::accel::bvhn::tree::Bvh8;
+    use glam::Vec3;
+
+    /// xorshift32 in [0, 1).
+    fn uniform(s: &mut u32) -> f32 {
+        *s ^= *s << 13;
+        *s ^= *s >> 17;
+        *s ^= *s << 5;
+        (*s >> 8) as f32 / 16_777_216.0
+    }
+
+    /// Rays with every kind of direction the binning meets: random ones, signed zeros,
+    /// ties between axes for the dominant one, and invalid rays (zero or non-finite
+    /// direction, NaN origin, an empty interval) interleaved.
+    fn mixed_rays(count: usize, seed: u32) -> Vec<Ray> {
+        let mut s = seed;
+        let mut rays = Vec::with_capacity(count);
+        for i in 0..count {
+            let mut u = || uniform(&mut s) * 2.0 - 1.0;
+            let o = Vec3::new(u() * 12.0 + 5.0, u() * 12.0 + 5.0, u() * 12.0 + 5.0);
+            let d = match i % 11 {
+                0 => Vec3::new(-0.0, u(), 0.0),
+                1 => Vec3::new(0.5, -0.5, u() * 0.5),
+                2 => Vec3::new(-0.25, 0.25, -0.25),
+                3 => Vec3::ZERO,
+                4 => Vec3::new(f32::INFINITY, 1.0, 0.0),
+                _ => Vec3::new(u(), u(), u()),
+            };
+            let mut r = Ray::new(o, d);
+            match i % 13 {
+                5 => r.origin.y = f32::NAN,
+                6 => (r.tmin, r.tmax) = (2.0, 1.0),
+                7 => (r.tmin, r.tmax, r.time) = (0.5, 9.0, 0.25),
+                _ => {}
+            }
+            rays.push(r);
+        }
+        rays
+    }
+
+    #[test]
+    fn query_of_is_ray_query_new_bit_for_bit() {
+        let mut valid = 0;
+        for r in mixed_rays(5000, 11) {
+            let Some(q) = RayQuery::new(&r) else {
+                assert!(!r.is_valid());
+                continue;
+            };
+            valid += 1;
+            let p = query_of(&r);
+            let bits = |q: &RayQuery| {
+                let mut v: Vec<u32> = [q.origin, q.dir, q.inv_dir]
+                    .iter()
+                    .flat_map(|x| x.to_array().map(f32::to_bits))
+                    .collect();
+                v.extend([q.tmin, q.tmax, q.time, q.sx, q.sy, q.sz].map(f32::to_bits));
+                v.extend([q.kx, q.ky, q.kz].map(|k| k as u32));
+                v
+            };
+            assert_eq!(bits(&p), bits(&q), "ray {r:?}");
+        }
+        assert!(valid > 3000, "{valid} valid rays");
+    }
+
+    /// Batches of decreasing size through one thread's scratch (whose buffers are then
+    /// longer than the batch and hold the previous batch's rays), with invalid rays
+    /// among them: every answer is the single-ray kernel's.
+    #[test]
+    fn stream_batches_of_shrinking_size_answer_as_single_rays() {
+        let mut corners = Vec::new();
+        let mut s = 3u32;
+        for _ in 0..4000 {
+            let mut u = || uniform(&mut s);
+            let c = Vec3::new(u(), u(), u()) * 10.0;
+            corners.push([
+                c,
+                c + Vec3::new(u(), u(), 0.1),
+                c + Vec3::new(0.2, u(), u()),
+            ]);
+        }
+        let bvh = Bvh8::build(Triangles::from_corners(&corners));
+        let rays = mixed_rays(3000, 5);
+        let mut hits_seen = 0;
+        for len in [3000, 1700, 400, 129, 5, 1, 0] {
+            let batch = &rays[..len];
+            let mut closest = vec![None; len];
+            let mut occluded = vec![true; len];
+            bvh.closest_stream(batch, &mut closest);
+            bvh.any_stream(batch, &mut occluded);
+            for (i, r) in batch.iter().enumerate() {
+                let single = bvh.closest_single(r);
+                assert_eq!(closest[i], single, "batch {len}, ray {i}");
+                assert_eq!(occluded[i], bvh.any_single(r), "batch {len}, ray {i}");
+                hits_seen += single.is_some() as usize;
+            }
+        }
+        assert!(hits_seen > 300, "{hits_seen} hits");
+    }
 }
