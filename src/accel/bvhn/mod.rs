@@ -35,6 +35,7 @@
 //! `stream.rs`.
 
 mod collapse;
+mod huge;
 mod node;
 mod packet;
 mod packet_bounds;

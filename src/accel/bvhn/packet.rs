@@ -159,6 +159,13 @@ where
                     }
                 }
                 if n > 0 {
+                    // Tried, slower (issue 12, pk17): every candidate of the whole-packet
+                    // test prefetched before the per-lane tests instead (nodes whole,
+                    // leaves up to four groups, every line), so the nearest child's
+                    // lines are on their way too. 10^6 primary (`stream_profile
+                    // /tmp/m1e6.obj bvh8-packet+pf primary 7`, AVX-512, 1 thread, load
+                    // 6-7, Mrays per CPU-second, three interleaved rounds): 13.29 / 13.36
+                    // / 13.67 against this prefetch's 13.45 / 15.31 / 16.33.
                     if self.prefetch.packet && n > 1 {
                         for &(c, _) in &order[..n] {
                             self.prefetch_child(children[c]);

@@ -82,6 +82,15 @@ impl<L: Lanes> PacketRays<'_, L> {
         let enter = d(self.near[0], 0)
             .maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.s.tmin)));
         let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tcull)));
+        // Tried, no win (issue 12, pk17): a lane that misses the box given entry NaN
+        // (`select(hit, enter, NaN)`), so that the active mask at the pop counts only
+        // the lanes that entered the subtree, as Embree's hybrid traversal does
+        // (`tNear = select(vmask, lnearP, inf)`): here a missing lane keeps a finite
+        // entry and stays "active" below. 10^6 primary, `stream_profile /tmp/m1e6.obj
+        // MODE primary 7` (AVX-512, 1 thread, load ~6, Mrays/s medians, before / after,
+        // interleaved): bvh8-packet 10.47 / 9.58 and 8.09 / 8.12, `@5` 9.96 / 8.55,
+        // `@8` 9.13 / 6.60: honest counts send more subtrees ray by ray, and the
+        // one-ray kernel is the slower way through them.
         (enter, enter.le(exit).bitmask())
     }
 }
