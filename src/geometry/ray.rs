@@ -245,11 +245,16 @@ impl RayQuery {
     /// the same correctly rounded division).
     #[inline]
     pub fn new(ray: &Ray) -> Option<Self> {
+        ray.is_valid().then(|| Self::of_valid(ray))
+    }
+
+    /// [`RayQuery::new`] of a ray known to be valid, always inlined: the stream
+    /// kernel's binning builds each query straight into its bin slot with it (a call
+    /// returning the `Option` through memory cost failed store forwards there).
+    #[inline(always)]
+    pub fn of_valid(ray: &Ray) -> Self {
         /// The axis after `k`, cyclically, and the one after that.
         const NEXT: [[usize; 2]; 3] = [[1, 2], [2, 0], [0, 1]];
-        if !ray.is_valid() {
-            return None;
-        }
         let d = ray.dir.to_array();
         let inv_dir = Vec3::ONE / ray.dir;
         let kz = dominant_axis(ray.dir);
@@ -257,7 +262,7 @@ impl RayQuery {
         // Keep the winding of the projected triangle: swap when the dominant axis is negative.
         let (kx, ky) = if d[kz] < 0.0 { (b, a) } else { (a, b) };
         let sz = inv_dir.to_array()[kz];
-        Some(RayQuery {
+        RayQuery {
             origin: ray.origin,
             dir: ray.dir,
             inv_dir,
@@ -270,7 +275,7 @@ impl RayQuery {
             sx: d[kx] * sz,
             sy: d[ky] * sz,
             sz,
-        })
+        }
     }
 }
 

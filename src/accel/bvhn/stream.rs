@@ -145,7 +145,7 @@ impl Scratch {
         // A counting sort by octant (the direction's sign bits, which are the
         // reciprocal's: 1/(-0.0) is -inf; 8 for an invalid ray, which `RayQuery::new`
         // rejects), then each valid ray's query and node-test record built straight into
-        // its bin slot by `query_of`, `RayQuery::new`'s arithmetic inlined.
+        // its bin slot by `RayQuery::of_valid`, inlined.
         //
         // Why: the former form built every query in the caller's order by calling
         // `RayQuery::new` (not inlined there), whose `Option<RayQuery>` came back through
@@ -197,7 +197,7 @@ impl Scratch {
             let s = next[k as usize] as usize;
             next[k as usize] += 1;
             self.index[s] = i as u32;
-            let q = query_of(r);
+            let q = RayQuery::of_valid(r);
             self.rays[s] = if fma {
                 let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
                 let kz = q.kz;
@@ -243,35 +243,6 @@ impl Scratch {
     #[cold]
     fn placeholder() -> RayQuery {
         RayQuery::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X)).expect("a valid ray")
-    }
-}
-
-/// `RayQuery::new(r)` of a valid ray `r`, the same operations, inlined into the
-/// binning loop so the query is built in its slot (test
-/// `query_of_is_ray_query_new_bit_for_bit`).
-#[inline(always)]
-fn query_of(ray: &Ray) -> RayQuery {
-    /// The axis after `k`, cyclically, and the one after that.
-    const NEXT: [[usize; 2]; 3] = [[1, 2], [2, 0], [0, 1]];
-    let d = ray.dir.to_array();
-    let inv_dir = glam::Vec3::ONE / ray.dir;
-    let kz = dominant_axis(ray.dir);
-    let [a, b] = NEXT[kz];
-    let (kx, ky) = if d[kz] < 0.0 { (b, a) } else { (a, b) };
-    let sz = inv_dir.to_array()[kz];
-    RayQuery {
-        origin: ray.origin,
-        dir: ray.dir,
-        inv_dir,
-        tmin: ray.tmin,
-        tmax: ray.tmax,
-        time: ray.time,
-        kx,
-        ky,
-        kz,
-        sx: d[kx] * sz,
-        sy: d[ky] * sz,
-        sz,
     }
 }
 
@@ -610,30 +581,6 @@ mod tests {
             rays.push(r);
         }
         rays
-    }
-
-    #[test]
-    fn query_of_is_ray_query_new_bit_for_bit() {
-        let mut valid = 0;
-        for r in mixed_rays(5000, 11) {
-            let Some(q) = RayQuery::new(&r) else {
-                assert!(!r.is_valid());
-                continue;
-            };
-            valid += 1;
-            let p = query_of(&r);
-            let bits = |q: &RayQuery| {
-                let mut v: Vec<u32> = [q.origin, q.dir, q.inv_dir]
-                    .iter()
-                    .flat_map(|x| x.to_array().map(f32::to_bits))
-                    .collect();
-                v.extend([q.tmin, q.tmax, q.time, q.sx, q.sy, q.sz].map(f32::to_bits));
-                v.extend([q.kx, q.ky, q.kz].map(|k| k as u32));
-                v
-            };
-            assert_eq!(bits(&p), bits(&q), "ray {r:?}");
-        }
-        assert!(valid > 3000, "{valid} valid rays");
     }
 
     /// Batches of decreasing size through one thread's scratch (whose buffers are then
