@@ -35,7 +35,6 @@
 //! `stream.rs`.
 
 mod collapse;
-mod huge;
 mod node;
 mod packet;
 mod packet_bounds;

@@ -275,36 +275,3 @@ fn large_builds_validate_at_one_and_two_threads() {
     assert_eq!((a.nodes, a.leaves), (b.nodes, b.leaves));
     assert_eq!(a.sah_cost.to_bits(), b.sah_cost.to_bits());
 }
-
-/// `advise_huge` backs a fresh large array with huge pages where the kernel allows them
-/// (64 MiB: above glibc's largest mmap threshold, so the allocation is always a fresh
-/// mapping, as the node and group arrays of a 10^6-triangle tree are; smaller arrays
-/// may reuse pages already mapped 4 KiB, which the advice leaves as they are), and a
-/// large tree built with the advice validates and answers a packet as single rays do.
-#[test]
-fn advised_arrays_lie_in_huge_pages() {
-    use crate::simd::kernels::TriGroup4;
-    let thp =
-        std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled").unwrap_or_default();
-    if !thp.is_empty() && !thp.contains("[never]") {
-        let mut v: Vec<TriGroup4> = Vec::with_capacity((64 << 20) / 160);
-        super::huge::advise_huge(&v);
-        v.resize(v.capacity(), TriGroup4::EMPTY);
-        let (huge, total) = super::huge::huge_kib(&v).expect("/proc/self/smaps");
-        assert!(huge >= 32 << 10, "{huge} KiB of {total} KiB in huge pages");
-    }
-    let bvh = Bvh8::build(crate::bench::BenchMesh::procedural(150_000).triangles);
-    bvh.validate().expect("the tree validates");
-    let rays: Vec<Ray> = (0..16)
-        .map(|i| {
-            let (x, y) = ((i % 4) as f32, (i / 4) as f32);
-            Ray::new(Vec3::new(0.3 + 0.01 * x, 0.2 + 0.01 * y, -5.0), Vec3::Z)
-        })
-        .collect();
-    let mut packet = vec![None; 16];
-    bvh.closest_hit_batch(&rays, &mut packet);
-    for (r, got) in rays.iter().zip(&packet) {
-        assert_eq!(*got, bvh.closest_hit(r));
-    }
-    assert!(packet.iter().any(Option::is_some), "the rays hit the mesh");
-}

@@ -2,7 +2,6 @@
 //! collapse), its shape statistics, and the [`Accel`] entry points.
 
 use super::collapse::{Collapse, PARALLEL_COLLAPSE_LEVELS};
-use super::huge::advise_huge;
 use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
@@ -117,9 +116,15 @@ where
                 _ => 0,
             }),
         };
-        // Before the collapse writes them: see `huge.rs`.
-        advise_huge(&c.nodes);
-        advise_huge(&c.groups);
+        // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
+        // node and group arrays before the collapse writes them, as Embree's allocator
+        // does (`os_advise`); this host's transparent_hugepage is `madvise`, so a 10^6
+        // tree (~60 MiB) sits in ~15,000 4 KiB pages. It took (56 MiB in huge pages)
+        // but 10^6 primary (`stream_profile /tmp/m1e6.obj MODE primary 7`, AVX-512, 1
+        // thread, load 6-7, Mrays per CPU-second, interleaved) gave 12.06 / 12.59
+        // without packet prefetch against 11.88 / 15.38 / 11.44 / 13.19 / 12.99 without
+        // the advice, and 15.18 / 15.12 with prefetch against 14.44 / 14.65. The
+        // first-load stalls are latency, which the packet prefetch hides, not the TLB.
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
