@@ -51,7 +51,7 @@ use super::node::{NodeWidth, WideNode, Width, is_leaf};
 use super::stack::insert_far_to_near;
 use super::tree::Bvh;
 use crate::accel::Primitives;
-use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, dominant_axis, octant};
+use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayQuery, octant};
 use crate::simd::Lanes;
 use crate::simd::compact::{COMPACT_SLACK, select_ids};
 use crate::simd::prefetch::prefetch;
