@@ -509,10 +509,7 @@ impl PixelRng {
     #[inline]
     pub fn fill_pairs16(&mut self, m: usize, u: &mut [f32; 16], v: &mut [f32; 16]) {
         debug_assert!(m <= 16);
-        crate::simd::splitmix::unit_pairs16(self.state, u, v);
-        self.state = self
-            .state
-            .wrapping_add((2 * m as u64).wrapping_mul(GOLDEN_GAMMA));
+        crate::simd::splitmix::unit_pairs16(self.skip_pairs(m as u32), u, v);
     }
 
     /// The state before the next `m` pairs of draws, the stream advanced past them:
