@@ -260,6 +260,30 @@ pub struct NearSpheres {
     sides: (Option<Vec3>, [Option<f32>; TINY_MAX_PRIMITIVES]),
 }
 
+impl NearSpheres {
+    /// The spheres of `spheres`, with the triangle plane culls `planes` to try and no
+    /// plane sides known yet.
+    fn new(spheres: SphereBits, planes: u32) -> Self {
+        NearSpheres {
+            planes,
+            sides: (None, [None; TINY_MAX_PRIMITIVES]),
+            all: spheres.all,
+            opaque: spheres.opaque,
+            glass: spheres.glass,
+        }
+    }
+}
+
+/// The quad light's four corners, in order around it.
+fn quad_corners(q: &QuadLight) -> [Vec3; 4] {
+    [
+        q.corner,
+        q.corner + q.edge1,
+        q.corner + q.edge1 + q.edge2,
+        q.corner + q.edge2,
+    ]
+}
+
 /// Whether the sphere `(center, radius)` is clear of every shadow segment of a shading
 /// point towards the quad light `q`, in the sense of `simd::sphere_clearance`: the
 /// sphere test finds no root on any of them. `origins` are the segments' two possible
@@ -559,22 +583,11 @@ impl LaneOccluders {
     /// quad light `q`: the spheres of `spheres` (`sphere_bits` of a cull covering the
     /// point's segments).
     pub fn spheres_near(&self, base: Vec3, spheres: SphereBits, q: &QuadLight) -> NearSpheres {
-        let corners = [
-            q.corner,
-            q.corner + q.edge1,
-            q.corner + q.edge1 + q.edge2,
-            q.corner + q.edge2,
-        ];
+        let corners = quad_corners(q);
         let planes = self.planes.iter().enumerate().fold(0u32, |b, (k, p)| {
             b | (p.may_cull(base, &corners) as u32) << (k & 31)
         });
-        NearSpheres {
-            planes,
-            sides: (None, [None; TINY_MAX_PRIMITIVES]),
-            all: spheres.all,
-            opaque: spheres.opaque,
-            glass: spheres.glass,
-        }
+        NearSpheres::new(spheres, planes)
     }
 
     /// [`spheres_near`](Self::spheres_near) for the light samples of several shading
@@ -587,12 +600,7 @@ impl LaneOccluders {
         spheres: SphereBits,
         q: &QuadLight,
     ) -> NearSpheres {
-        let corners = [
-            q.corner,
-            q.corner + q.edge1,
-            q.corner + q.edge1 + q.edge2,
-            q.corner + q.edge2,
-        ];
+        let corners = quad_corners(q);
         // Only the planes `settle_segments` reads (a twin takes its plane's sides), each
         // until one point sets it.
         let mut planes = 0u32;
@@ -610,13 +618,7 @@ impl LaneOccluders {
                 }
             }
         }
-        NearSpheres {
-            planes,
-            sides: (None, [None; TINY_MAX_PRIMITIVES]),
-            all: spheres.all,
-            opaque: spheres.opaque,
-            glass: spheres.glass,
-        }
+        NearSpheres::new(spheres, planes)
     }
 
     /// [`settle`](Self::settle) for lanes holding the light samples of several shading
