@@ -201,7 +201,7 @@ pub(crate) struct ShadingPoint<'a> {
 
 impl ShadingPoint<'_> {
     /// The key of the point's light points towards light `index`.
-    fn light_set(&self, seed: u64, index: u32) -> HitSet {
+    pub(crate) fn light_set(&self, seed: u64, index: u32) -> HitSet {
         HitSet {
             seed,
             pixel: self.pixel,

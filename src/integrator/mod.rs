@@ -29,6 +29,7 @@ mod polygon_aperture;
 pub mod queues;
 pub mod recursive;
 pub mod region;
+pub(crate) mod round_lights;
 pub mod sampling;
 pub(crate) mod shade_stage;
 pub mod shader;

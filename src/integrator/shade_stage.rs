@@ -17,8 +17,11 @@
 //! the scalar f32 operations in order: the emitted rays are bit-identical, the
 //! contributions differ only by the lane power function's error (a test checks both).
 //!
+//! The shadow rays of disk and sphere lights come from lanes over the light samples of
+//! one hit too (`round_lights`), in scenes without quad lights.
+//!
 //! Not in lanes (the scalar shader handles them, per material or per scene): image
-//! textures, spot, disk and sphere lights, and the environment.
+//! textures, spot lights, quad lights together with round ones, and the environment.
 
 use super::area_light::{
     LightPoints, QuadLights, ShadingPoint, pack_stride, shade_quads, shade_quads_packed,
@@ -27,6 +30,7 @@ use super::hit_batch::HitBatch;
 use super::path_keys::child_path;
 use super::point_shadow::{PointOccluders, settle_and_sum};
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
+use super::round_lights::{RoundLight, shade_round};
 use super::sampling::PixelRng;
 use super::shader::{ChildKind, Emitted, Shader};
 use super::tiny_shadow::LaneOccluders;
@@ -78,6 +82,9 @@ pub(crate) struct LaneShading {
     /// `(light, wi, irradiance)`: `wi` towards the light, as the scalar shader's.
     directional: Vec<(u32, Vec3, Vec3)>,
     quads: QuadLights,
+    /// The disk and sphere lights (`round_lights`), in light order. A scene has these
+    /// or quads in lanes, not both (one point's streams are drawn light by light).
+    round: Vec<(u32, RoundLight)>,
     /// Where set, the point and directional lights' shadow rays are settled in the
     /// shading lanes instead of queued (`point_shadow`).
     point_occluders: Option<PointOccluders>,
@@ -91,6 +98,7 @@ impl LaneShading {
         let mut points = Vec::new();
         let mut directional = Vec::new();
         let mut quads = QuadLights::default();
+        let mut round = Vec::new();
         for (i, light) in scene.lights.iter().enumerate() {
             match *light {
                 Light::Point {
@@ -109,8 +117,14 @@ impl LaneShading {
                 } => quads
                     .lights
                     .push((i as u32, QuadLight::new(corner, edge1, edge2, radiance))),
+                Light::Disk { .. } | Light::Sphere { .. } => {
+                    round.push((i as u32, RoundLight::of(light)?))
+                }
                 _ => return None,
             }
+        }
+        if !quads.is_empty() && !round.is_empty() {
+            return None;
         }
         Some(LaneShading {
             covered: scene
@@ -121,6 +135,7 @@ impl LaneShading {
             points,
             directional,
             quads,
+            round,
             point_occluders: None,
         })
     }
@@ -347,8 +362,8 @@ fn shade_group_lanes(
     // light samples (the order of its random stream).
     let spawns = spawns && depth < shader.max_depth;
     let lane_children = spawns && !m.is_glossy() && !m.is_translucent();
-    // The quad-light loop below reads each hit's albedo; nothing else does.
-    let keep_albedo = lit && !lanes.quads.is_empty();
+    // The area-light loop below reads each hit's albedo; nothing else does.
+    let keep_albedo = lit && !(lanes.quads.is_empty() && lanes.round.is_empty());
     let mut children = ChildPaths {
         throughput: [Vec3::ZERO; 16],
         path: [0; 16],
@@ -470,8 +485,9 @@ fn shade_group_lanes(
     // Per hit below: the quad lights and the scalar child lobes. A group with neither
     // (every hit of whitted_base) skips the loop and its per-hit gathers.
     let quads = lit && !lanes.quads.is_empty();
+    let round = lit && !lanes.round.is_empty();
     let scalar_children = spawns && !lane_children;
-    if !(quads || scalar_children) {
+    if !(quads || round || scalar_children) {
         return;
     }
     let point = |k: usize, slot_pixel: &[u64]| {
@@ -480,7 +496,7 @@ fn shade_group_lanes(
         ShadingPoint {
             batch,
             k,
-            albedo: if quads {
+            albedo: if quads || round {
                 albedo[k - range.start]
             } else {
                 Vec3::ZERO
@@ -573,6 +589,16 @@ fn shade_group_lanes(
             shade_quads(
                 shader,
                 &lanes.quads,
+                &h,
+                &mut stream,
+                sinks,
+                &mut scratch.light,
+            );
+        }
+        if round {
+            shade_round(
+                shader,
+                &lanes.round,
                 &h,
                 &mut stream,
                 sinks,
@@ -872,6 +898,7 @@ mod tests {
             .collect();
         paths.sort();
         let (mut scenes, mut shadow_rays, mut inexact, mut quad, mut smooth) = (0, 0, 0, 0, 0);
+        let mut round = 0;
         let (mut reflected, mut refracted) = (0, 0);
         for path in paths {
             let name = path.display().to_string();
@@ -886,6 +913,7 @@ mod tests {
             };
             scenes += 1;
             quad += lanes.quads.lights.len();
+            round += lanes.round.len();
             let shader = Shader::new(&scene, &opts, plan);
             let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
             let (w, h) = (48, 36);
@@ -936,6 +964,7 @@ mod tests {
         assert!(reflected > 1_000 && refracted > 500);
         assert!(scenes >= 6, "{scenes} shipped scenes in the lane path");
         assert!(quad > 0, "a quad light was compared");
+        assert!(round >= 2, "{round} disk and sphere lights compared");
         assert!(smooth > 0, "a smooth-mesh hit was compared");
         assert!(shadow_rays > 10_000, "{shadow_rays} shadow rays compared");
     }

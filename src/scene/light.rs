@@ -153,18 +153,18 @@ impl LightView {
 /// A sphere light as seen from a point outside it: the cone it subtends.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SphereView {
-    center: Vec3,
-    radius: f32,
+    pub(crate) center: Vec3,
+    pub(crate) radius: f32,
     /// From the point to the centre, its squared length, and its direction.
-    to_c: Vec3,
-    dc2: f32,
-    axis: Vec3,
+    pub(crate) to_c: Vec3,
+    pub(crate) dc2: f32,
+    pub(crate) axis: Vec3,
     /// `1 - cos θmax` of the cone, and a basis around its axis.
-    one_minus: f32,
-    t: Vec3,
-    b: Vec3,
+    pub(crate) one_minus: f32,
+    pub(crate) t: Vec3,
+    pub(crate) b: Vec3,
     /// Radiance over the cone's density in solid angle.
-    weight: Vec3,
+    pub(crate) weight: Vec3,
 }
 
 impl SphereView {

@@ -278,10 +278,44 @@ pub fn quad_light(
     samples: f32,
     active: u32,
 ) -> ShadowLanes {
-    let zero = Packet::splat(0.0);
     let point = V3::splat(q.corner)
         .plus(V3::splat(q.edge1).scale(u))
         .plus(V3::splat(q.edge2).scale(v));
+    let light = FlatLight {
+        normal: q.normal,
+        area: q.area,
+        radiance: q.radiance,
+        p_error: q.p_error,
+    };
+    towards_points(s, hl, &light, point, samples, active)
+}
+
+/// What a flat area light (a quad or a disk) shares between its samples: its unit
+/// normal, area, radiance and the error bound of its sampled points.
+#[derive(Clone, Copy, Debug)]
+pub struct FlatLight {
+    pub normal: Vec3,
+    pub area: f32,
+    pub radiance: Vec3,
+    pub p_error: Vec3,
+}
+
+/// Shadow rays from one shading point (splatted over the lanes of `s`) to the sampled
+/// points `point` of the flat light `light`, lanes in `active`, each contribution
+/// divided by `samples`: the rest of `Light::sample` (`towards`: direction, distance,
+/// the light's cosine and `cosθ' A / r²`) and of the scalar area-light loop, bit for
+/// bit but for the Blinn-Phong power ([`reflectance`]).
+#[inline(always)]
+pub fn towards_points(
+    s: &SurfaceLanes,
+    hl: &Highlight,
+    light: &FlatLight,
+    point: V3,
+    samples: f32,
+    active: u32,
+) -> ShadowLanes {
+    let zero = Packet::splat(0.0);
+    let q = light;
     let n = V3::splat(q.normal);
     let to = point.minus(s.p);
     let dist2 = to.dot(to);

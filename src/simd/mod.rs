@@ -30,6 +30,7 @@ pub mod quad_samples;
 pub mod quant;
 pub mod ray_gather;
 pub mod ray_store;
+pub mod round_light;
 pub mod shadow_cull;
 pub mod slab_fma;
 pub mod specular;
