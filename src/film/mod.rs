@@ -12,7 +12,7 @@ mod pixel_sums;
 mod preflight;
 pub mod tonemap;
 
-pub use color::{linear_to_srgb, linear_to_srgb8, luminance, srgb_to_linear};
+pub use color::{Srgb8Table, linear_to_srgb, linear_to_srgb8, luminance, srgb_to_linear};
 pub use linear_image::Film;
 pub use output::{
     INTERRUPTED_EXIT_CODE, SUPPORTED_EXTENSIONS, check_image_path, install_interrupt_handler,
@@ -20,4 +20,4 @@ pub use output::{
 };
 pub use pixel_sums::PixelSums;
 pub use preflight::check_output_paths;
-pub use tonemap::{ImageOptions, ToneMap};
+pub use tonemap::{Display8, ImageOptions, ToneMap};

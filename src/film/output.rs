@@ -1,7 +1,7 @@
 //! Image files: format by extension, written atomically.
 
 use super::Film;
-use super::tonemap::ImageOptions;
+use super::tonemap::{Display8, ImageOptions};
 use crate::error::{Error, Result};
 use image::codecs::hdr::HdrEncoder;
 use std::fs::File;
@@ -69,10 +69,11 @@ impl Film {
 
     /// 8-bit sRGB codes after `opts`' exposure and tone mapping, three bytes per pixel.
     pub fn to_display8(&self, opts: &ImageOptions) -> Vec<u8> {
+        let display = Display8::new(opts);
         self.pixels
             .iter()
             .flat_map(|p| p.to_array())
-            .map(|c| opts.display8(c))
+            .map(|c| display.code(c))
             .collect()
     }
 

@@ -2,6 +2,7 @@
 //! then the sRGB OETF. Float outputs (HDR, EXR) never go through it: they keep the
 //! linear radiance the integrator computed.
 
+use super::color::Srgb8Table;
 use super::linear_to_srgb8;
 use crate::error::{Error, Result};
 use std::str::FromStr;
@@ -107,6 +108,31 @@ impl ImageOptions {
     }
 }
 
+/// [`ImageOptions::display8`] for a whole image: `2^exposure` computed once and the
+/// OETF by its code thresholds ([`Srgb8Table`]); the same codes.
+#[derive(Clone, Debug)]
+pub struct Display8 {
+    scale: f32,
+    tonemap: ToneMap,
+    table: Srgb8Table,
+}
+
+impl Display8 {
+    pub fn new(opts: &ImageOptions) -> Self {
+        Display8 {
+            scale: opts.exposure.exp2(),
+            tonemap: opts.tonemap,
+            table: Srgb8Table::new(),
+        }
+    }
+
+    /// The code of one linear channel: [`ImageOptions::display8`]`(c)`.
+    #[inline]
+    pub fn code(&self, c: f32) -> u8 {
+        self.table.encode(self.tonemap.apply(c * self.scale))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,6 +148,23 @@ mod tests {
     // Expected codes computed by hand (f64): sRGB OETF of the operator's output, * 255,
     // rounded. Every value chosen lies at least 0.1 from a rounding boundary, far above
     // the ~1e-5 difference between f32 and f64 evaluation.
+    /// `Display8`, the whole-image encoder, gives `display8`'s code under every
+    /// operator and exposure, on radiance from 0 to 2^20 and the special values.
+    #[test]
+    fn whole_image_codes_are_display8() {
+        let mut values: Vec<f32> = (0..200_000).map(|i| (i as f32 * 1e-4).powi(3)).collect();
+        values.extend([-1.0, -0.0, f32::NAN, f32::INFINITY, f32::MAX, 1e-30]);
+        for tonemap in [ToneMap::Clamp, ToneMap::Reinhard, ToneMap::Filmic] {
+            for exposure in [-3.5, 0.0, 1.0, 2.25] {
+                let o = opts(exposure, tonemap);
+                let d = Display8::new(&o);
+                for &c in &values {
+                    assert_eq!(d.code(c), o.display8(c), "{tonemap:?} {exposure} {c:e}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn known_radiance_gives_known_code_under_each_operator() {
         // Clamp: 0.18 -> 117.65 -> 118; 1 and above -> 255.
