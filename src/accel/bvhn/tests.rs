@@ -152,11 +152,19 @@ fn packet_bounds_never_cull_a_child_a_lane_enters() {
     for trial in 0..120 {
         let spread = [0.0, 1e-3, 0.5, 4.0][trial % 4];
         let cone = [1e-3, 0.05, 0.4][trial % 3];
-        let base = Vec3::new(5.0, 5.0, -10.0) + Vec3::new(r(), r(), r()) * 4.0;
+        // Origins before the soup, inside it (boxes behind some lanes, on every axis)
+        // and past it, looking along +z and -z.
+        let (z0, dz) = match trial % 6 {
+            0 | 1 => (-10.0, 1.0),
+            2 | 3 => (3.0, 1.0),
+            4 => (3.0, -1.0),
+            _ => (20.0, -1.0),
+        };
+        let base = Vec3::new(5.0, 5.0, z0) + Vec3::new(r(), r(), r()) * 4.0;
         let axis = if trial % 5 == 0 {
-            Vec3::new(1e-7, 2e-7, 1.0) // reciprocals near 1e7
+            Vec3::new(1e-7, 2e-7, dz) // reciprocals near 1e7
         } else {
-            (Vec3::new(r(), r(), 8.0) - Vec3::splat(0.5)).normalize()
+            (Vec3::new(r(), r(), 8.0 * dz) - Vec3::splat(0.5)).normalize()
         };
         let rays: Vec<Ray> = (0..16)
             .map(|_| {
