@@ -420,23 +420,21 @@ pub(crate) fn shade_quads_packed(
     points.near.clear();
     points.near.resize(lights, occluders.sphere_bits(None));
     let mut first = true;
+    let origins = fast.lane_origins();
     for (j, h) in pts.iter().enumerate() {
         if left >> j & 1 == 1 {
             continue;
         }
         let k = h.k;
-        let culled = points.cull.bits(
-            occluders,
-            fast.origins_at(j * stride),
-            &quads.lights,
-            || {
+        let culled = points
+            .cull
+            .bits(occluders, origins.at(j * stride), &quads.lights, || {
                 let end = batch.ray.len().max(k + 1);
                 let live = (1u32 << (end - k).min(16)) - 1;
                 let lanes = |a: &super::hit_batch::Soa3| a.lanes(k);
                 let (b, e, n) = (lanes(&batch.base), lanes(&batch.p_error), lanes(&batch.ng));
                 OriginBox::of_group(b, e, n, live)
-            },
-        );
+            });
         for (i, near) in points.near.iter_mut().enumerate() {
             let bits = if culled {
                 points.cull.near(i)
@@ -462,13 +460,11 @@ pub(crate) fn shade_quads_packed(
         }
     }
     .filter(|_| plan.sampler == SamplerKind::Jittered);
-    let bases: [Vec3; 16] = std::array::from_fn(|j| batch.base.get(k0 + j.min(n - 1)));
+    // The points' base points, point `j` in lane `j` (as loaded from the batch).
+    let bases = batch.base.lanes(k0);
+    let accepted_points = !left & ((1u32 << n) - 1);
     for (i, (index, quad)) in quads.lights.iter().enumerate() {
-        let near = occluders.spheres_near_points(
-            (0..n).filter(|&j| left >> j & 1 == 0).map(|j| bases[j]),
-            points.near[i],
-            quad,
-        );
+        let near = occluders.spheres_near_points(bases, accepted_points, points.near[i], quad);
         let (u, v) = match &layout {
             // A square jittered set per point: the pack's draws in lanes, each point's
             // from its stream (`PackLayout`, the loop below bit for bit).
@@ -484,7 +480,7 @@ pub(crate) fn shade_quads_packed(
                     states[j & 15] = rng.skip_pairs(samples as u32);
                     sinks.drawn.light += samples as u64;
                 }
-                layout.points(&states, !left & ((1u32 << n) - 1))
+                layout.points(&states, accepted_points)
             }
             None => {
                 // Each point's light points appended at its block of lanes (zeros
