@@ -125,6 +125,22 @@
 //! host loaded 5-8 by other builds on 2 cores, min / median / max ms): dof_area 9 rounds
 //! 301/348/682 -> 258/292/414 (median -16 %), another 9 rounds 300/398/747 ->
 //! 266/358/452 (-10 %); 640x480 5 rounds 1421/1836/2357 -> 1159/1444/1893 (-21 %).
+//!
+//! Then (branch `dof18`; images byte-identical against the previous binary on the 30
+//! PNGs of `imgcheck`): perf of dof_area 960x720 (1 thread, AVX-512) put ~12 % of
+//! `shade_quads_packed`'s samples on `may_cull` and `spheres_near_points` (every point
+//! below the light asks for the light's own plane, which it never culls), ~8 % on the
+//! sixteen `Soa3::get` of the base points (four used) and ~5 % each on `V3::lane` of
+//! the points' origins (`GroupCull::bits`) and of `settle_segments`' shared origins
+//! (three 64-byte stores per point). Now `TrianglePlane::may_cull_lanes` answers for
+//! the pack's points at once, the base points are the batch's lanes, and the origins
+//! are unpacked once per pack (`quad_samples::Unpacked3`). After: `shade_quads_packed`
+//! 49 % -> 40 % of the frame's samples, `spheres_near_points` 2.6 % on its own.
+//! Timed with the camera change of the same branch (render phase, `--stats-json`,
+//! interleaved with the previous binary, flock'd, host loaded 5-6 by other helpers on
+//! 2 cores, min / median / max ms): 1 thread 9 rounds 350/430/594 -> 309/363/484 and
+//! 334/350/398 -> 308/323/395 (shade 241/264/311 -> 216/248/330); 2 threads 7 rounds
+//! 380/397/438 -> 342/361/478.
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_append, hit_points_split, path_rng};

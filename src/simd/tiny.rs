@@ -1373,7 +1373,7 @@ mod tests {
             let quad = [v0, v0 + e1, v0 + e1 + e2, v0 + e2].map(|c| c + n * lift);
             let straddle = [v0 + n, v0 - n + e1, v0 + e2];
             let to: &[Vec3] = match case % 6 {
-                0 | 1 | 2 => &quad,
+                0..=2 => &quad,
                 3 => &straddle,
                 4 => &quad[..1],
                 _ => &[],
