@@ -125,6 +125,22 @@
 //! host loaded 5-8 by other builds on 2 cores, min / median / max ms): dof_area 9 rounds
 //! 301/348/682 -> 258/292/414 (median -16 %), another 9 rounds 300/398/747 ->
 //! 266/358/452 (-10 %); 640x480 5 rounds 1421/1836/2357 -> 1159/1444/1893 (-21 %).
+//!
+//! Then (branch `dof18`; images byte-identical against the previous binary on the 30
+//! PNGs of `imgcheck`): perf of dof_area 960x720 (1 thread, AVX-512) put ~12 % of
+//! `shade_quads_packed`'s samples on `may_cull` and `spheres_near_points` (every point
+//! below the light asks for the light's own plane, which it never culls), ~8 % on the
+//! sixteen `Soa3::get` of the base points (four used) and ~5 % each on `V3::lane` of
+//! the points' origins (`GroupCull::bits`) and of `settle_segments`' shared origins
+//! (three 64-byte stores per point). Now `TrianglePlane::may_cull_lanes` answers for
+//! the pack's points at once, the base points are the batch's lanes, and the origins
+//! are unpacked once per pack (`quad_samples::Unpacked3`). After: `shade_quads_packed`
+//! 49 % -> 40 % of the frame's samples, `spheres_near_points` 2.6 % on its own.
+//! Timed with the camera change of the same branch (render phase, `--stats-json`,
+//! interleaved with the previous binary, flock'd, host loaded 5-6 by other helpers on
+//! 2 cores, min / median / max ms): 1 thread 9 rounds 350/430/594 -> 309/363/484 and
+//! 334/350/398 -> 308/323/395 (shade 241/264/311 -> 216/248/330); 2 threads 7 rounds
+//! 380/397/438 -> 342/361/478.
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_append, hit_points_split, path_rng};
@@ -420,23 +436,21 @@ pub(crate) fn shade_quads_packed(
     points.near.clear();
     points.near.resize(lights, occluders.sphere_bits(None));
     let mut first = true;
+    let origins = fast.lane_origins();
     for (j, h) in pts.iter().enumerate() {
         if left >> j & 1 == 1 {
             continue;
         }
         let k = h.k;
-        let culled = points.cull.bits(
-            occluders,
-            fast.origins_at(j * stride),
-            &quads.lights,
-            || {
+        let culled = points
+            .cull
+            .bits(occluders, origins.at(j * stride), &quads.lights, || {
                 let end = batch.ray.len().max(k + 1);
                 let live = (1u32 << (end - k).min(16)) - 1;
                 let lanes = |a: &super::hit_batch::Soa3| a.lanes(k);
                 let (b, e, n) = (lanes(&batch.base), lanes(&batch.p_error), lanes(&batch.ng));
                 OriginBox::of_group(b, e, n, live)
-            },
-        );
+            });
         for (i, near) in points.near.iter_mut().enumerate() {
             let bits = if culled {
                 points.cull.near(i)
@@ -462,13 +476,11 @@ pub(crate) fn shade_quads_packed(
         }
     }
     .filter(|_| plan.sampler == SamplerKind::Jittered);
-    let bases: [Vec3; 16] = std::array::from_fn(|j| batch.base.get(k0 + j.min(n - 1)));
+    // The points' base points, point `j` in lane `j` (as loaded from the batch).
+    let bases = batch.base.lanes(k0);
+    let accepted_points = !left & ((1u32 << n) - 1);
     for (i, (index, quad)) in quads.lights.iter().enumerate() {
-        let near = occluders.spheres_near_points(
-            (0..n).filter(|&j| left >> j & 1 == 0).map(|j| bases[j]),
-            points.near[i],
-            quad,
-        );
+        let near = occluders.spheres_near_points(bases, accepted_points, points.near[i], quad);
         let (u, v) = match &layout {
             // A square jittered set per point: the pack's draws in lanes, each point's
             // from its stream (`PackLayout`, the loop below bit for bit).
@@ -484,7 +496,7 @@ pub(crate) fn shade_quads_packed(
                     states[j & 15] = rng.skip_pairs(samples as u32);
                     sinks.drawn.light += samples as u64;
                 }
-                layout.points(&states, !left & ((1u32 << n) - 1))
+                layout.points(&states, accepted_points)
             }
             None => {
                 // Each point's light points appended at its block of lanes (zeros

@@ -195,9 +195,48 @@ impl QuadSamples {
     /// The two origins of the point in lane `lane` (of a [`per_lane`](Self::per_lane)
     /// value).
     pub fn origins_at(&self, lane: usize) -> [Vec3; 2] {
-        [self.plain.lane(lane & 15), self.flipped.lane(lane & 15)]
+        self.lane_origins().at(lane)
     }
 
+    /// The two origins of every lane, unpacked once (a pack's points each ask for
+    /// theirs: one store of each coordinate's lanes, not one per point).
+    #[inline(always)]
+    pub fn lane_origins(&self) -> LaneOrigins {
+        LaneOrigins([Unpacked3::of(self.plain), Unpacked3::of(self.flipped)])
+    }
+}
+
+/// The lanes of a [`V3`] as arrays, for reading several lanes (`V3::lane` stores the
+/// three coordinates' lanes at every call).
+pub struct Unpacked3([[f32; 16]; 3]);
+
+impl Unpacked3 {
+    #[inline(always)]
+    pub fn of(v: V3) -> Unpacked3 {
+        Unpacked3([v.x.to_array(), v.y.to_array(), v.z.to_array()])
+    }
+
+    /// `V3::lane(i & 15)`.
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Vec3 {
+        let i = i & 15;
+        Vec3::new(self.0[0][i], self.0[1][i], self.0[2][i])
+    }
+}
+
+/// The two shadow-ray origins of each lane of a [`QuadSamples`], unpacked
+/// ([`QuadSamples::lane_origins`]).
+pub struct LaneOrigins([Unpacked3; 2]);
+
+impl LaneOrigins {
+    /// [`QuadSamples::origins_at`] of lane `lane`.
+    #[inline(always)]
+    pub fn at(&self, lane: usize) -> [Vec3; 2] {
+        [self.0[0].lane(lane), self.0[1].lane(lane)]
+    }
+}
+
+impl QuadSamples {
     /// `quad_light(s, hl, q, u, v, samples, active)`, bit for bit (`hl` the highlight
     /// given to [`new`](Self::new)), except in the contribution of lanes outside the
     /// returned `mask` (which nobody reads) and of lanes whose highlight cosine is below
