@@ -519,12 +519,12 @@ impl Gather {
                 let t = h.prim[l] as usize;
                 for (c, ids) in ids.iter().enumerate() {
                     let vi = ids[t] as usize;
-                    for a in 0..3 {
-                        self.corners[c][a][l] = xyz[a][vi];
+                    for (out, coords) in self.corners[c].iter_mut().zip(xyz) {
+                        out[l] = coords[vi];
                     }
                     if with_normals {
-                        for a in 0..3 {
-                            self.normals[c][a][l] = nxyz[a][vi];
+                        for (out, coords) in self.normals[c].iter_mut().zip(nxyz) {
+                            out[l] = coords[vi];
                         }
                     }
                 }
