@@ -607,6 +607,24 @@ mod tests {
         v.to_array().map(f32::to_bits)
     }
 
+    /// The camera rays through the pixel centres of a 64x48 image of `scene`, row
+    /// by row.
+    fn pixel_rays(scene: &Scene) -> Vec<Ray> {
+        let (w, h) = (64, 48);
+        let frame = scene.camera.frame(w, h);
+        (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| frame.ray(x as f32 + 0.5, y as f32 + 0.5))
+            .collect()
+    }
+
+    /// `rays` in a random order drawn from `next` (Fisher-Yates).
+    fn shuffle(rays: &mut [Ray], next: &mut impl FnMut() -> u64) {
+        for i in (1..rays.len()).rev() {
+            rays.swap(i, (next() % (i as u64 + 1)) as usize);
+        }
+    }
+
     /// In a scene of one material, `build`'s one-pass split gives the batch the
     /// counting sort gives (the same hits in the same order, the same misses and
     /// group, every column bit for bit), on a mesh's camera rays in pixel order and
@@ -619,20 +637,13 @@ mod tests {
         scene.materials.truncate(1);
         scene.mesh.material.fill(0);
         let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
-        let (w, h) = (64, 48);
-        let frame = scene.camera.frame(w, h);
-        let mut rays: Vec<Ray> = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| frame.ray(x as f32 + 0.5, y as f32 + 0.5))
-            .collect();
+        let mut rays = pixel_rays(&scene);
         let mut next = xorshift64(0x5eed_0e0e_0001);
         let (mut split, mut sorted) = (HitBatch::default(), HitBatch::default());
         let (mut hits_seen, mut misses_seen) = (0, 0);
         for round in 0..3 {
             if round > 0 {
-                for i in (1..rays.len()).rev() {
-                    rays.swap(i, (next() % (i as u64 + 1)) as usize);
-                }
+                shuffle(&mut rays, &mut next);
             }
             // Round 2: only the middle of the queue (fewer rays than the last round:
             // stale entries of a longer batch must not show).
@@ -708,16 +719,9 @@ mod tests {
             let name = format!("{} (shuffled {shuffled})", path.display());
             let scene = load_scene(path).unwrap_or_else(|e| panic!("{name}: {e}"));
             let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
-            let (w, h) = (64, 48);
-            let frame = scene.camera.frame(w, h);
-            let mut rays: Vec<Ray> = (0..h)
-                .flat_map(|y| (0..w).map(move |x| (x, y)))
-                .map(|(x, y)| frame.ray(x as f32 + 0.5, y as f32 + 0.5))
-                .collect();
+            let mut rays = pixel_rays(&scene);
             if shuffled {
-                for i in (1..rays.len()).rev() {
-                    rays.swap(i, (next() % (i as u64 + 1)) as usize);
-                }
+                shuffle(&mut rays, &mut next);
             }
             let hits: Vec<_> = rays.iter().map(|r| accel.closest_hit(r)).collect();
             batch.build(&scene, &rays, &hits);
