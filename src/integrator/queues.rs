@@ -84,6 +84,13 @@ impl RayQueue {
         }
     }
 
+    /// The slot of ray 0 where the queue is a camera run (ray `i` in slot
+    /// `first + i`, weight and throughput one), else `None`.
+    #[inline]
+    pub fn camera_first_slot(&self) -> Option<u32> {
+        self.camera.map(|c| c.first_slot)
+    }
+
     /// Weight of ray `i`: what its radiance is scaled by.
     #[inline]
     pub fn weight(&self, i: usize) -> Vec3 {

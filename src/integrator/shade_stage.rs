@@ -177,9 +177,24 @@ pub(crate) fn shade_queue(
     let scene = shader.scene;
     scratch.batch.build(scene, &queue.rays, hits);
     // The misses, from the batch's material pass (one pass over the hits, not two).
-    for i in scratch.batch.misses() {
-        let slot = queue.slot(i) as usize;
-        sinks.acc[slot] += queue.weight(i) * scene.miss_radiance(queue.rays[i].dir);
+    // Camera rays against a plain background (no environment) add the same value,
+    // `weight * background` with weight one, to consecutive slots: the queue's camera
+    // run and the background settled once, not per miss (before, each miss matched
+    // the queue's kind twice and the environment once, and loaded its 52-byte ray).
+    let camera_plain = queue
+        .camera_first_slot()
+        .filter(|_| scene.environment.is_none());
+    if let Some(first) = camera_plain {
+        let add = Vec3::ONE * scene.background;
+        let acc = &mut sinks.acc[first as usize..];
+        for i in scratch.batch.misses() {
+            acc[i] += add;
+        }
+    } else {
+        for i in scratch.batch.misses() {
+            let slot = queue.slot(i) as usize;
+            sinks.acc[slot] += queue.weight(i) * scene.miss_radiance(queue.rays[i].dir);
+        }
     }
     let groups = std::mem::take(&mut scratch.batch.groups);
     for (material, range) in &groups {
