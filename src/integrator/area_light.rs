@@ -188,6 +188,22 @@ pub(crate) struct LightPoints {
     layout: Option<((u32, usize), Option<PackLayout>)>,
 }
 
+impl LightPoints {
+    /// Lane group `c..c + 16` of the drawn points (`c` a multiple of 16 below
+    /// `samples`): `u`, `v`, and the mask of the lanes that hold one of the `samples`
+    /// points.
+    pub(crate) fn group(&self, c: usize, samples: u32) -> (Packet, Packet, u32) {
+        let lane = |a: &[f32]| Packet::new(a[c..c + 16].try_into().expect("16 lanes"));
+        let left = samples as usize - c;
+        let active = if left >= 16 {
+            0xffff
+        } else {
+            (1u32 << left) - 1
+        };
+        (lane(&self.u), lane(&self.v), active)
+    }
+}
+
 /// The lanes per shading point of a pack ([`shade_quads_packed`]) for `samples` light
 /// samples per point and light: `samples` rounded up to a power of two, where that
 /// leaves room for two points or more in a lane group (1 to 8 samples); `None` where
@@ -217,7 +233,47 @@ pub(crate) struct ShadingPoint<'a> {
 
 impl ShadingPoint<'_> {
     /// The key of the point's light points towards light `index`.
-    pub(crate) fn light_set(&self, seed: u64, index: u32) -> HitSet {
+    /// The point splatted over sixteen lanes: one shading point, its light samples in
+    /// the lanes.
+    pub(crate) fn lanes(&self) -> SurfaceLanes {
+        let (batch, k) = (self.batch, self.k);
+        let splat = |a: &super::hit_batch::Soa3| V3::splat(a.get(k));
+        SurfaceLanes {
+            p: splat(&batch.p),
+            p_error: splat(&batch.p_error),
+            ng: splat(&batch.ng),
+            ns: splat(&batch.ns),
+            base: splat(&batch.base),
+            smooth: Packet::splat(batch.smooth[k]),
+            wo: splat(&batch.dir).negated(),
+            albedo: V3::splat(self.albedo),
+        }
+    }
+
+    /// Draws the point's `samples` light points towards light `index` from its stream
+    /// into `points.u` and `points.v` (padded to whole lane groups), as the scalar
+    /// shader draws them, and counts them.
+    pub(crate) fn draw_light_points(
+        &self,
+        shader: &Shader,
+        index: u32,
+        stream: &mut Option<PixelRng>,
+        points: &mut LightPoints,
+        sinks: &mut Sinks,
+    ) {
+        let samples = shader.plan.shadow;
+        hit_points_split(
+            shader.plan.sampler,
+            self.light_set(shader.seed, index),
+            samples,
+            stream,
+            (&mut points.u, &mut points.v),
+            &mut points.pairs,
+        );
+        sinks.drawn.light += samples as u64;
+    }
+
+    fn light_set(&self, seed: u64, index: u32) -> HitSet {
         HitSet {
             seed,
             pixel: self.pixel,
@@ -242,17 +298,7 @@ pub(crate) fn shade_quads(
     points: &mut LightPoints,
 ) {
     let (batch, k) = (h.batch, h.k);
-    let splat = |a: &super::hit_batch::Soa3| V3::splat(a.get(k));
-    let s = SurfaceLanes {
-        p: splat(&batch.p),
-        p_error: splat(&batch.p_error),
-        ng: splat(&batch.ng),
-        ns: splat(&batch.ns),
-        base: splat(&batch.base),
-        smooth: Packet::splat(batch.smooth[k]),
-        wo: splat(&batch.dir).negated(),
-        albedo: V3::splat(h.albedo),
-    };
+    let s = h.lanes();
     let plan = &shader.plan;
     let samples = plan.shadow;
     let paths = LanePaths::splat(h.slot, h.weight, h.time);
@@ -293,26 +339,11 @@ pub(crate) fn shade_quads(
             o.spheres_near(base, spheres, quad)
         });
         // The light points straight into lanes (`u`, `v` padded to 16).
-        hit_points_split(
-            plan.sampler,
-            h.light_set(shader.seed, *index),
-            samples,
-            stream,
-            (&mut points.u, &mut points.v),
-            &mut points.pairs,
-        );
-        sinks.drawn.light += samples as u64;
-        let lane = |a: &[f32], c: usize| Packet::new(a[c..c + 16].try_into().expect("16"));
+        h.draw_light_points(shader, *index, stream, points, sinks);
         let mut sum = V3::splat(Vec3::ZERO);
         let mut any = false;
         for c in (0..samples as usize).step_by(16) {
-            let left = samples as usize - c;
-            let active = if left >= 16 {
-                0xffff
-            } else {
-                (1u32 << left) - 1
-            };
-            let (u, v) = (lane(&points.u, c), lane(&points.v, c));
+            let (u, v, active) = points.group(c, samples);
             let sl = match &hoisted {
                 Some(fast) => fast.lanes(&s, &h.hl, quad, u, v, samples as f32, active),
                 None => quad_light(&s, &h.hl, quad, u, v, samples as f32, active),

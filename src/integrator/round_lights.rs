@@ -16,12 +16,9 @@
 //! stage's test compares them on area_lights.toml).
 
 use super::area_light::{LightPoints, ShadingPoint};
-use super::path_keys::hit_points_split;
 use super::shade_stage::{LanePaths, Sinks, push_shadow};
 use super::shader::Shader;
 use crate::scene::{Light, LightView, SphereView};
-use crate::simd::Packet;
-use crate::simd::direct_light::SurfaceLanes;
 use crate::simd::lanes3::V3;
 use crate::simd::round_light::{DiskLight, disk_light, sphere_light};
 use glam::Vec3;
@@ -68,19 +65,8 @@ pub(crate) fn shade_round(
     sinks: &mut Sinks,
     points: &mut LightPoints,
 ) {
-    let (batch, k) = (h.batch, h.k);
-    let splat = |a: &super::hit_batch::Soa3| V3::splat(a.get(k));
-    let s = SurfaceLanes {
-        p: splat(&batch.p),
-        p_error: splat(&batch.p_error),
-        ng: splat(&batch.ng),
-        ns: splat(&batch.ns),
-        base: splat(&batch.base),
-        smooth: Packet::splat(batch.smooth[k]),
-        wo: splat(&batch.dir).negated(),
-        albedo: V3::splat(h.albedo),
-    };
-    let p = batch.p.get(k);
+    let s = h.lanes();
+    let p = h.batch.p.get(h.k);
     let plan = &shader.plan;
     let samples = plan.shadow;
     let paths = LanePaths::splat(h.slot, h.weight, h.time);
@@ -88,15 +74,7 @@ pub(crate) fn shade_round(
     for &(index, light) in lights {
         // The points are drawn whether or not the light is seen, as the scalar
         // shader draws them.
-        hit_points_split(
-            plan.sampler,
-            h.light_set(shader.seed, index),
-            samples,
-            stream,
-            (&mut points.u, &mut points.v),
-            &mut points.pairs,
-        );
-        sinks.drawn.light += samples as u64;
+        h.draw_light_points(shader, index, stream, points, sinks);
         // A point inside a sphere light sees none of it.
         let seen = match &light {
             RoundLight::Disk(d) => Seen::Disk(d),
@@ -105,15 +83,8 @@ pub(crate) fn shade_round(
                 _ => continue,
             },
         };
-        let lane = |a: &[f32], c: usize| Packet::new(a[c..c + 16].try_into().expect("16"));
         for c in (0..samples as usize).step_by(16) {
-            let left = samples as usize - c;
-            let active = if left >= 16 {
-                0xffff
-            } else {
-                (1u32 << left) - 1
-            };
-            let (u, v) = (lane(&points.u, c), lane(&points.v, c));
+            let (u, v, active) = points.group(c, samples);
             let n = samples as f32;
             let sl = match &seen {
                 Seen::Disk(d) => disk_light(&s, &h.hl, d, u, v, n, active),

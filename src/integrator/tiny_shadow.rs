@@ -1083,16 +1083,7 @@ mod tests {
             let p = shift + r3(&mut unit, 16.0) * scale;
             let ng = r3(&mut unit, 2.0).normalize_or(Vec3::Y);
             let p_error = crate::geometry::gamma(5) * p.abs() + r3(&mut unit, 1e-6).abs() * scale;
-            let s = SurfaceLanes {
-                p: V3::splat(p),
-                p_error: V3::splat(p_error),
-                ng: V3::splat(ng),
-                ns: V3::splat(ng),
-                base: V3::splat(p),
-                smooth: Packet::splat(0.0),
-                wo: V3::splat(ng),
-                albedo: V3::splat(Vec3::ONE),
-            };
+            let s = SurfaceLanes::splat_point(p, p_error, ng, Vec3::ONE);
             let fast = QuadSamples::new(&s, &hl).expect("a unit normal");
             // The light points: corners, edge midpoints, then random ones.
             let fixed = [

@@ -37,6 +37,24 @@ pub struct SurfaceLanes {
     pub albedo: V3,
 }
 
+impl SurfaceLanes {
+    /// One shading point in every lane (tests): the shading normal, the shadow rays'
+    /// base and the view along the geometric normal and the point, not on a smooth mesh.
+    #[cfg(test)]
+    pub fn splat_point(p: Vec3, p_error: Vec3, ng: Vec3, albedo: Vec3) -> SurfaceLanes {
+        SurfaceLanes {
+            p: V3::splat(p),
+            p_error: V3::splat(p_error),
+            ng: V3::splat(ng),
+            ns: V3::splat(ng),
+            base: V3::splat(p),
+            smooth: Packet::splat(0.0),
+            wo: V3::splat(ng),
+            albedo: V3::splat(albedo),
+        }
+    }
+}
+
 /// The per-material part of the reflectance.
 #[derive(Clone, Copy, Debug)]
 pub struct Highlight {

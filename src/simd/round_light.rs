@@ -207,16 +207,7 @@ mod tests {
                 let ng = (Vec3::new(f(), f(), f()) - 0.5).normalize_or(Vec3::Z);
                 let p_error = p.abs() * 1e-6;
                 let albedo = Vec3::new(0.8, 0.5, 0.2);
-                let s = SurfaceLanes {
-                    p: V3::splat(p),
-                    p_error: V3::splat(p_error),
-                    ng: V3::splat(ng),
-                    ns: V3::splat(ng),
-                    base: V3::splat(p),
-                    smooth: Packet::splat(0.0),
-                    wo: V3::splat(ng),
-                    albedo: V3::splat(albedo),
-                };
+                let s = SurfaceLanes::splat_point(p, p_error, ng, albedo);
                 let hl = Highlight {
                     specular: Vec3::ZERO,
                     shininess: 1.0,
