@@ -23,6 +23,7 @@
 use super::sobol::SobolSet;
 use crate::error::{Error, Result};
 use crate::geometry::warp::ONE_MINUS_EPSILON;
+use crate::simd::splitmix::{GAMMA, MIX1, MIX2};
 use std::str::FromStr;
 
 /// Which pattern a render uses for its sample sets.
@@ -459,18 +460,16 @@ pub struct PixelRng {
     state: u64,
 }
 
-const GOLDEN_GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
-
 impl PixelRng {
     pub fn new(seed: u64, pixel: u64) -> Self {
         // Hash both so neighbouring pixels and neighbouring seeds start far apart.
         PixelRng {
-            state: mix64(seed ^ mix64(pixel.wrapping_add(GOLDEN_GAMMA))),
+            state: mix64(seed ^ mix64(pixel.wrapping_add(GAMMA))),
         }
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
+        self.state = self.state.wrapping_add(GAMMA);
         mix64(self.state)
     }
 
@@ -483,7 +482,7 @@ impl PixelRng {
     /// points of whitted_area64 draw ~200 M of them).
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
+        self.state = self.state.wrapping_add(GAMMA);
         mix64_top24(self.state) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 
@@ -519,9 +518,7 @@ impl PixelRng {
     #[inline]
     pub fn skip_pairs(&mut self, m: u32) -> u64 {
         let state = self.state;
-        self.state = self
-            .state
-            .wrapping_add((2 * m as u64).wrapping_mul(GOLDEN_GAMMA));
+        self.state = self.state.wrapping_add((2 * m as u64).wrapping_mul(GAMMA));
         state
     }
 
@@ -532,7 +529,7 @@ impl PixelRng {
     #[inline]
     pub fn shuffle_targets16(&mut self) -> [u32; 16] {
         let targets = crate::simd::splitmix::shuffle_targets16(self.state, 16);
-        self.state = self.state.wrapping_add(15u64.wrapping_mul(GOLDEN_GAMMA));
+        self.state = self.state.wrapping_add(15u64.wrapping_mul(GAMMA));
         targets
     }
 
@@ -564,8 +561,8 @@ fn mix64(z: u64) -> u64 {
 /// [`mix64`] before its last step.
 #[inline(always)]
 fn mix64_unfinished(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb)
+    z = (z ^ (z >> 30)).wrapping_mul(MIX1);
+    (z ^ (z >> 27)).wrapping_mul(MIX2)
 }
 
 /// `mix64(z) >> 40`: bits 40..63 of `z ^ (z >> 31)` are bits 40..63 of `z` (the

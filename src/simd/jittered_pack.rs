@@ -20,10 +20,7 @@
 //! with the scalar path).
 
 use super::Packet;
-use super::splitmix::unit_draws16;
-
-/// SplitMix64's increment (`integrator::sampling::PixelRng`).
-const GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
+use super::splitmix::{GAMMA, unit_draws16};
 
 /// The lanes of a pack of `n`-point square jittered sets, one per block of `stride`
 /// lanes: per lane its draws' offsets from its stream's state, its stratum's column

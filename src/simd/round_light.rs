@@ -67,10 +67,14 @@ impl DiskLight {
     }
 }
 
-/// libm's `f(a[i])` per lane.
+/// libm's `(sin a[i], cos a[i])` per lane.
 #[inline(always)]
-fn per_lane(a: Packet, f: impl Fn(f32) -> f32) -> Packet {
-    Packet::new(a.to_array().map(f))
+fn sin_cos_per_lane(a: Packet) -> (Packet, Packet) {
+    let (mut s, mut c) = ([0.0f32; 16], [0.0f32; 16]);
+    for (i, x) in a.to_array().into_iter().enumerate() {
+        (s[i], c[i]) = x.sin_cos();
+    }
+    (Packet::new(s), Packet::new(c))
 }
 
 /// Shadow rays from one shading point (splatted over the lanes of `s`) to the points
@@ -122,7 +126,7 @@ pub fn sphere_light(
     let sin2 = one - cos * cos;
     let sin = sin2.simd_gt(zero).select(sin2, zero).sqrt();
     let phi = Packet::splat(TAU) * v;
-    let (cos_phi, sin_phi) = (per_lane(phi, f32::cos), per_lane(phi, f32::sin));
+    let (sin_phi, cos_phi) = sin_cos_per_lane(phi);
     // `sin * phi.cos() * t + sin * phi.sin() * b + cos * axis`, normalised as glam's
     // `normalize`: times `1 / length`.
     let w = V3::splat(cone.t)

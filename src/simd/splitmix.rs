@@ -13,10 +13,11 @@
 //! loop). Without AVX-512DQ this is the scalar loop.
 
 /// SplitMix64's increment and the two multipliers of its output function (Stafford's
-/// "Mix13"), as `integrator::sampling` uses them.
-const GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
-const MIX1: u64 = 0xbf58_476d_1ce4_e5b9;
-const MIX2: u64 = 0x94d0_49bb_1331_11eb;
+/// "Mix13"): the constants of `integrator::sampling::PixelRng`, the scalar oracle of
+/// this file and of `jittered_pack`, which take them from here.
+pub const GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
+pub const MIX1: u64 = 0xbf58_476d_1ce4_e5b9;
+pub const MIX2: u64 = 0x94d0_49bb_1331_11eb;
 
 /// The output function of draw `m` (0-based) after the state `state`, before its last
 /// step (`z ^ (z >> 31)`, which changes bits 0..32 only).
