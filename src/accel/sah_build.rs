@@ -40,6 +40,19 @@
 //! 707/678/610 sampled; 10^7 one build each, 7,588 before, 8,207 sampled. SAH cost
 //! 16.0920 -> 16.1746 (+0.5 %) at 10^6, 18.5870 -> 18.6135 at 10^7; sampling from
 //! 4096 or 1024 references (16.1847, 16.2096) was no faster either.
+//!
+//! Dead end, 2026-11-28 (issue 12, helper big19; the code is in the report of branch
+//! `big19`): the interior nodes' child pairs from a bump arena instead of a `Box`
+//! each (perf of `build_time 1000000 3 1`, 1 thread: `malloc`, `_int_malloc`,
+//! `_int_free` and the recursive drop of the boxes were 5.4 % of the samples, 524k
+//! pairs of 128 bytes per 10^6 build). One array for the worst case (`n - 1` pairs) is
+//! mapped afresh by every build: page faults per build 17,547 -> 31,354, CPU ms per
+//! build (7 interleaved rounds of 3 builds, load 4-6, medians) 434/431/481/565/526/
+//! 524/516 before against 607/459/560/464/520/478/430. In chunks of 2048 pairs
+//! (256 KiB, from glibc's heap) still 23,868 faults (the freed chunks are trimmed
+//! from the heap's top) and 483/406/397/425/402/426/406 before against 434/421/407/
+//! 390/464/393/429 (medians of the rounds 406 / 421): no win shows, removed. The boxes
+//! come back from the heap every build; the arena's pages did not.
 
 use super::Bvh2BuildOptions;
 use super::Primitives;

@@ -68,6 +68,15 @@ impl<const N: usize> Collapse<'_, N> {
         // without 612 / 431 / 468, with 505 / 679 / 498; against the build before the
         // two-pass collapse, seven rounds 551..596 (median 542) before, 498..679 (median
         // 610) with the advice. Removed.
+        // Again (big19, 2026-11-28), with the node array advised too (both arrays' fresh
+        // pages): faults per 10^6 build 17,548 -> 2,744, but CPU ms per build (`build_time
+        // 1000000 3 1`, 1 thread, load 4-5, 6 interleaved rounds, medians) 391/513/418/
+        // 468/399/555 without against 474/482/432/731/499/455 with: huge pages are zeroed
+        // (and compacted, `defrag` is `madvise` here) on the fault, so the per-4 KiB fault
+        // cost saved is spent there. bvh8-packet 10^6 traversal with the tree in huge pages
+        // (`stream_profile /tmp/m1e6.obj bvh8-packet W 5`, Mrays/s, 5 rounds): primary
+        // 12.14/12.49/11.79/11.56/12.57 without, 12.31/12.97/12.29/11.88/12.64 with (+1-4 %),
+        // shadow 4.37/3.92/4.05/4.22/3.94 without, 3.83/3.62/4.41/3.66/4.33 with: not taken.
         for (i, &(first, count)) in leaves.iter().enumerate() {
             if let Some(&(f, c)) = leaves.get(i + GATHER_AHEAD) {
                 for &id in &ids[f as usize..(f + c) as usize] {

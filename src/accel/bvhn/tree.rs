@@ -88,8 +88,14 @@ pub type Bvh8c<P> = Bvh<P, 8, QNode<8>>;
 /// the bunny this packs leaves (37k half-empty groups before) and builds 41 -> 30 ms,
 /// with 4-7 % faster traversal. One group per leaf: on the bunny, leaves of up to two
 /// groups were 3 % slower for single rays through the BVH8 (4.14 vs 4.28 Mrays/s
-/// diffuse) and 7 % for its packets, and no faster for the BVH4. Scalar leaves
-/// (spheres) keep per-primitive costs.
+/// diffuse) and 7 % for its packets, and no faster for the BVH4. At 10^6 (big19,
+/// 2026-11-28, `/tmp/m1e6.obj`, 1 thread, load 4-5, interleaved rounds, Mrays/s medians
+/// of 5 passes) leaves of up to two groups (`max_leaf` 8) did not win either: 27,051
+/// page faults per build against 17,547 (more, part-empty groups: a 5-triangle leaf
+/// takes two), CPU ms per build 405/483/431/394 against 505/404/398/439; bvh8-packet
+/// primary 9.14/12.38/12.27/12.36/12.54 against 12.14/12.49/11.79/11.56/12.57, shadow
+/// 4.36/4.00/4.30/4.01 against 4.37/3.92/4.05/4.22; bvh8-stream diffuse 2.73/2.62/2.38/
+/// 3.19 against 3.10/2.79/2.41/2.82. Scalar leaves (spheres) keep per-primitive costs.
 pub fn wide_build_options(simd_triangle_leaves: bool) -> Bvh2BuildOptions {
     Bvh2BuildOptions {
         max_leaf: 4,
@@ -107,12 +113,17 @@ where
         let n = prims.count();
         let triangles = prims.as_triangles();
         let (tree, ids) = build_tree(&prims, wide_build_options(triangles.is_some()));
+        let parallel = rayon::current_num_threads() > 1;
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
             nodes: Vec::with_capacity(n / 2 + 1),
+            // The serial collapse sizes the groups itself once its node pass has counted
+            // them (`Collapse::gather`); the parallel one appends its parts' groups, so
+            // they are counted before. The count walks the whole build tree: 1.3 % of a
+            // 1-thread 10^6 build's perf samples (big19), now skipped there.
             groups: Vec::with_capacity(match (&tree, triangles) {
-                (Some(t), Some(_)) => t.leaf_blocks(4),
+                (Some(t), Some(_)) if parallel => t.leaf_blocks(4),
                 _ => 0,
             }),
         };
@@ -129,7 +140,7 @@ where
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
             // subtree collapses into arrays of its own that are then copied in.
-            Some(t) if rayon::current_num_threads() > 1 => c.collapse(t, PARALLEL_COLLAPSE_LEVELS),
+            Some(t) if parallel => c.collapse(t, PARALLEL_COLLAPSE_LEVELS),
             Some(t) => c.collapse(t, 0),
         };
         let Collapse { nodes, groups, .. } = c;
