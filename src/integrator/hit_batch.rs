@@ -291,7 +291,7 @@ impl HitBatch {
         for k0 in (0..n).step_by(LANES) {
             let m = (n - k0).min(LANES);
             let [even, odd] = &mut buffers;
-            let (cur, ahead) = if (k0 / LANES) % 2 == 0 {
+            let (cur, ahead) = if (k0 / LANES).is_multiple_of(2) {
                 (&*even, odd)
             } else {
                 (&*odd, even)
