@@ -21,7 +21,7 @@
 //! similar magnitude take the `f64` path.
 
 use super::exact_sum::ExactSum;
-use crate::simd::exact_sums::add7_if_exact;
+use crate::simd::exact_sums::{add7_if_exact, box_sums_if_exact};
 use glam::Vec3;
 
 /// Index of `Σ w` among the seven sums (`Σ w·L` r, g, b; `Σ w`; `Σ L` r, g, b).
@@ -214,28 +214,7 @@ impl PixelSums {
         if radiance.is_empty() {
             return None;
         }
-        let (mut sum, mut abs) = ([0.0f64; 3], [0.0f64; 3]);
-        // Smallest magnitude (as bits) of a non-zero addend: its exponent is e_min's.
-        let mut min_magnitude = u32::MAX;
-        let mut nonfinite = 0;
-        for r in radiance {
-            let finite = r.is_finite();
-            nonfinite += !finite as u64;
-            let r = if finite { r.to_array() } else { [0.0; 3] };
-            for c in 0..3 {
-                let m = r[c].to_bits() & 0x7fff_ffff;
-                min_magnitude = min_magnitude.min(if m == 0 { u32::MAX } else { m });
-                sum[c] += r[c] as f64;
-                abs[c] += (r[c] as f64).abs();
-            }
-        }
-        if min_magnitude != u32::MAX {
-            let ulp_min = ((min_magnitude >> 23) as i32).max(1) - 150;
-            let bound = f64::from_bits(((ulp_min + 53 + 1023) as u64) << 52);
-            if !(abs[0] < bound && abs[1] < bound && abs[2] < bound) {
-                return None;
-            }
-        }
+        let (sum, nonfinite) = box_sums_if_exact(radiance)?;
         let n = radiance.len() as f64;
         let value = Vec3::new(
             (sum[0] / n) as f32,

@@ -607,11 +607,14 @@ impl CameraSampler {
         }
         for &(x, y, index) in pixels {
             if constant {
+                // One extend per array and pixel. Before: a push per offset and array
+                // (a capacity check each), whose line held 44 % of this function's
+                // samples at 9 grid offsets per pixel (perf annotate, whitted_base
+                // `--spp 9 --sampler grid`, 1 thread).
                 offsets.extend_from_slice(&st.constant);
-                for &(ox, oy) in &st.constant {
-                    st.px.push(x as f32 + ox);
-                    st.py.push(y as f32 + oy);
-                }
+                let (fx, fy) = (x as f32, y as f32);
+                st.px.extend(st.constant.iter().map(|&(ox, _)| fx + ox));
+                st.py.extend(st.constant.iter().map(|&(_, oy)| fy + oy));
                 continue;
             }
             let sobol = if plan.sampler == SamplerKind::Sobol {

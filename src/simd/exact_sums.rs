@@ -8,7 +8,8 @@
 //! instructions; written branch-free in scalars the compiler still did not vectorise
 //! it (330).
 
-use wide::{f32x8, f64x8, i32x8};
+use glam::Vec3;
+use wide::{f32x8, f64x4, f64x8, i32x8, u32x4};
 
 /// Adds the seven `f32` addends `xs` to the `f64` sums `fast` (and their magnitudes to
 /// `abs`, the smallest ulp exponent of the finite non-zero ones to `ulp_min`) if every
@@ -57,6 +58,86 @@ pub fn add7_if_exact(
     abs.copy_from_slice(&a[..7]);
     *ulp_min = e_min;
     true
+}
+
+/// One of [`box_sums_if_exact`]'s two accumulators: the `f64` sums of its samples'
+/// components and of their magnitudes in lanes 0-2, the smallest magnitude (as bits)
+/// minus one, wrapping (a zero addend becomes `u32::MAX` and so never the minimum),
+/// and the count of non-finite samples.
+#[derive(Clone, Copy)]
+struct BoxLanes {
+    sum: f64x4,
+    abs: f64x4,
+    min: u32x4,
+    nonfinite: u64,
+}
+
+impl BoxLanes {
+    fn new() -> Self {
+        BoxLanes {
+            sum: f64x4::splat(0.0),
+            abs: f64x4::splat(0.0),
+            min: u32x4::splat(u32::MAX),
+            nonfinite: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn add(&mut self, r: Vec3) {
+        let finite = r.is_finite();
+        self.nonfinite += !finite as u64;
+        let r = if finite { r } else { Vec3::ZERO };
+        let v = f64x4::new([r.x as f64, r.y as f64, r.z as f64, 0.0]);
+        self.sum += v;
+        self.abs += v.abs();
+        let m = r.abs().to_array().map(f32::to_bits);
+        self.min = self
+            .min
+            .min(u32x4::new([m[0], m[1], m[2], 0]) - u32x4::splat(1));
+    }
+}
+
+/// The box filter's three `f64` sums of a pixel's radiance samples (a non-finite
+/// sample counts as zero), with the number of non-finite samples, where the sums are
+/// exact by [`PixelSums`](crate::film::PixelSums)' rule (every `Σ|x|` below
+/// `2^(e_min + 53)`, `e_min` the smallest ulp exponent of the pixel's non-zero
+/// addends); `None` where a sum might round.
+///
+/// The samples go alternately into two accumulators of `f64x4` lanes (x, y, z) and the
+/// two are added at the end. Where the rule holds every partial sum is exact in any
+/// order, so these are the bits of the samples summed one after another; where it
+/// fails the test fails here too: a partial sum of non-negative magnitudes whose exact
+/// value reaches the power of two `2^(e_min + 53)` rounds to at least it (rounding is
+/// monotone), and sums below it are exact.
+///
+/// Why: the scalar loop (`PixelSums::box_mean_value` before) carried one chain of
+/// minimums through all the pixel's 27 components and chains of nine dependent `f64`
+/// additions per component: its `min` line held a fifth of the pixel filter's samples
+/// (perf annotate, whitted_base `--spp 9 --sampler grid`, 1 thread).
+#[inline(always)]
+pub fn box_sums_if_exact(radiance: &[Vec3]) -> Option<([f64; 3], u64)> {
+    let (mut a, mut b) = (BoxLanes::new(), BoxLanes::new());
+    let mut pairs = radiance.chunks_exact(2);
+    for p in &mut pairs {
+        a.add(p[0]);
+        b.add(p[1]);
+    }
+    if let [r] = pairs.remainder() {
+        a.add(*r);
+    }
+    let min = a.min.min(b.min).to_array();
+    // Back to the magnitude; 0 where every addend is zero (no bound to test).
+    let min_magnitude = min[0].min(min[1]).min(min[2]).wrapping_add(1);
+    let abs = (a.abs + b.abs).to_array();
+    if min_magnitude != 0 {
+        let ulp_min = ((min_magnitude >> 23) as i32).max(1) - 150;
+        let bound = f64::from_bits(((ulp_min + 53 + 1023) as u64) << 52);
+        if !(abs[0] < bound && abs[1] < bound && abs[2] < bound) {
+            return None;
+        }
+    }
+    let sum = (a.sum + b.sum).to_array();
+    Some(([sum[0], sum[1], sum[2]], a.nonfinite + b.nonfinite))
 }
 
 #[cfg(test)]
