@@ -64,28 +64,29 @@ mod avx512 {
     use super::Lanes;
     use std::arch::x86_64::*;
 
-    /// Two vectors' lanes halved into one: the low 256 bits hold `a`'s eight partial
-    /// minima, the high `b`'s.
+    /// The lane-wise min of two selections of 128-bit blocks of `a` and `b` (`A`, `B`:
+    /// `_mm512_shuffle_f32x4` immediates). With `0x44, 0xEE` ("halve"): the low 256
+    /// bits hold `a`'s eight partial minima, the high `b`'s. With `0x88, 0xDD` on two
+    /// halved results (inputs `a b` and `c d`), block `j` holds input `j`'s four partial
+    /// minima (`a b c d`).
     #[inline(always)]
-    unsafe fn halve(a: __m512, b: __m512) -> __m512 {
+    unsafe fn blocks<const A: i32, const B: i32>(a: __m512, b: __m512) -> __m512 {
         unsafe {
             _mm512_min_ps(
-                _mm512_shuffle_f32x4::<0x44>(a, b),
-                _mm512_shuffle_f32x4::<0xEE>(a, b),
+                _mm512_shuffle_f32x4::<A>(a, b),
+                _mm512_shuffle_f32x4::<B>(a, b),
             )
         }
     }
 
-    /// Two results of [`halve`] (inputs `a b` and `c d`) into one: 128-bit block `j`
-    /// holds input `j`'s four partial minima (`a b c d`).
+    #[inline(always)]
+    unsafe fn halve(a: __m512, b: __m512) -> __m512 {
+        unsafe { blocks::<0x44, 0xEE>(a, b) }
+    }
+
     #[inline(always)]
     unsafe fn quarter(ab: __m512, cd: __m512) -> __m512 {
-        unsafe {
-            _mm512_min_ps(
-                _mm512_shuffle_f32x4::<0x88>(ab, cd),
-                _mm512_shuffle_f32x4::<0xDD>(ab, cd),
-            )
-        }
+        unsafe { blocks::<0x88, 0xDD>(ab, cd) }
     }
 
     /// Within each 128-bit block: elements 0 and 1 of `x`'s block (two partial minima
