@@ -20,6 +20,7 @@ pub mod glass_shadow;
 pub mod jittered;
 pub mod jittered_pack;
 pub mod kernels;
+pub mod lane_ranges;
 pub mod lane_rays;
 mod lanes;
 pub mod lanes3;

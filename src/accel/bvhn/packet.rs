@@ -150,7 +150,7 @@ where
                 while cand != 0 {
                     let c = cand.trailing_zeros() as usize;
                     cand &= cand - 1;
-                    let (enter, bits) = p.child_test::<SHARED, N>(&planes, c, tcull);
+                    let (enter, bits) = p.child_test(&planes, c, tcull);
                     if bits & active != 0 {
                         enters[c].write(enter);
                         // insertion sort, far to near, by the representative lane's entry
@@ -317,7 +317,7 @@ where
                 while cand != 0 {
                     let c = cand.trailing_zeros() as usize;
                     cand &= cand - 1;
-                    let (enter, bits) = p.child_test::<SHARED, N>(&planes, c, tcull);
+                    let (enter, bits) = p.child_test(&planes, c, tcull);
                     if bits & active != 0 {
                         match first {
                             None => first = Some((children[c], enter)),

@@ -5,6 +5,7 @@ use super::node::EMPTY_CHILD;
 use super::packet_setup::PacketRays;
 use crate::geometry::ROBUST_FAR_SCALE;
 use crate::simd::kernels::TriGroup4;
+use crate::simd::lane_ranges::lane_ranges;
 use crate::simd::{F4, Lanes};
 
 /// Trees with fewer nodes skip the whole-packet bounds: computing them costs about as
@@ -44,59 +45,59 @@ pub(super) const PACKET_BOUNDS_MIN_NODES: usize = 32;
 /// Mrays per CPU-second (`bench --modes bvh4-packet,bvh8-packet`, 5 interleaved rounds,
 /// medians, load ~7: noisy, but shadow packets start on the surface, with boxes behind).
 pub(super) struct PacketBounds<NL: Lanes> {
-    /// The bounds as lanes of a node's children.
-    node: IntervalLanes<NL>,
-    /// The same bounds as lanes of a leaf group's four triangles.
-    tri: IntervalLanes<F4>,
+    /// The bounds, as scalars: broadcast where a node's or a leaf group's test reads
+    /// them (kept as lanes of both widths, as before, they cost 34 broadcasts and stores
+    /// per packet group, most never read by a packet that misses the mesh).
+    b: Interval,
     near: [usize; 3],
     far: [usize; 3],
     enabled: bool,
+    lanes: std::marker::PhantomData<NL>,
 }
 
-/// A packet group's interval bounds, each broadcast to lanes of type `W`.
-struct IntervalLanes<W: Lanes> {
+/// A packet group's interval bounds.
+#[derive(Default)]
+struct Interval {
     /// Per axis: the origin bound that minimises the near-plane distance and the one that
     /// maximises the far-plane distance.
-    o_near: [W; 3],
-    o_far: [W; 3],
+    o_near: [f32; 3],
+    o_far: [f32; 3],
     /// Per axis: the lanes' reciprocal of least magnitude (near planes), and their
     /// smallest and largest far-scaled reciprocal (far planes).
-    inv: [W; 3],
-    inv_far: [[W; 2]; 3],
-    tmin: W,
-    tcull: W,
+    inv: [f32; 3],
+    inv_far: [[f32; 2]; 3],
+    /// The start of the interval of node tests, and of triangle tests (no later than 0).
+    tmin: f32,
+    tri_tmin: f32,
+    tcull: f32,
 }
 
-impl<W: Lanes> IntervalLanes<W> {
-    fn zero() -> Self {
-        let zero = W::splat(0.0);
-        IntervalLanes {
-            o_near: [zero; 3],
-            o_far: [zero; 3],
-            inv: [zero; 3],
-            inv_far: [[zero; 2]; 3],
-            tmin: zero,
-            tcull: zero,
-        }
-    }
-
-    /// Bits of the boxes (one per lane, given by the planes each axis enters and leaves
-    /// by) that some lane of the packet group may enter.
+impl Interval {
+    /// Bits of the boxes (one per lane of `W`, given by the planes each axis enters and
+    /// leaves by) that some lane of the packet group may enter after `tmin`.
     #[inline(always)]
-    fn enters(&self, near: [W; 3], far: [W; 3]) -> u32 {
-        let lo = |a: usize| (near[a] - self.o_near[a]) * self.inv[a];
+    fn enters<W: Lanes>(&self, near: [W; 3], far: [W; 3], tmin: f32) -> u32 {
+        let lo = |a: usize| (near[a] - W::splat(self.o_near[a])) * W::splat(self.inv[a]);
         let hi = |a: usize| {
-            let x = far[a] - self.o_far[a];
-            (x * self.inv_far[a][0]).maxps(x * self.inv_far[a][1])
+            let x = far[a] - W::splat(self.o_far[a]);
+            (x * W::splat(self.inv_far[a][0])).maxps(x * W::splat(self.inv_far[a][1]))
         };
-        let enter = lo(0).maxps(lo(1).maxps(lo(2).maxps(self.tmin)));
-        let exit = hi(0).minps(hi(1).minps(hi(2).minps(self.tcull)));
+        let enter = lo(0).maxps(lo(1).maxps(lo(2).maxps(W::splat(tmin))));
+        let exit = hi(0).minps(hi(1).minps(hi(2).minps(W::splat(self.tcull))));
         enter.le(exit).bitmask()
     }
 }
 
 impl<NL: Lanes> PacketBounds<NL> {
     /// Bounds over the lanes of `mask`, whose intervals end at most at `tmax`.
+    ///
+    /// The reductions all at once (`simd::lane_ranges`) and the bounds kept as scalars
+    /// (issue 12, pk19): bunny, `bench --threads 1 --reps 5 --modes
+    /// bvh4-packet,bvh8-packet`, 8 interleaved rounds against the session's starting
+    /// build, load 4-5, Mrays per CPU-second, min/median/max: bvh8-packet primary
+    /// 24.49/34.96/37.55 -> 28.03/38.99/40.34 (+11.5 %), shadow 8.40/11.27/12.12 ->
+    /// 9.09/12.09/12.90 (+7.3 %); bvh4-packet primary +7.2 %, shadow +5.7 %; diffuse
+    /// level; checksums unchanged.
     #[inline(always)]
     pub(super) fn new<L: Lanes>(
         p: &PacketRays<'_, L>,
@@ -106,35 +107,54 @@ impl<NL: Lanes> PacketBounds<NL> {
         wanted: bool,
     ) -> Self {
         let mut b = PacketBounds {
-            node: IntervalLanes::zero(),
-            tri: IntervalLanes::zero(),
+            b: Interval::default(),
             near: p.near,
             far: p.far,
             enabled: false,
+            lanes: std::marker::PhantomData,
         };
-        if !wanted {
+        if !wanted || mask == 0 {
             return b;
         }
-        let range = |v: L| lane_range(v, mask);
-        let tmin = range(p.tmin()).0;
+        let inv = p.inv();
+        // All reductions at once: `(lo, hi)` of `tmin`/`tmax` (the least start, the
+        // greatest end), the three reciprocals and, unless shared, the three origins.
+        let (lo, hi, o_range): ([f32; 4], [f32; 4], [(f32, f32); 3]) = if shared {
+            let (lo, hi) = lane_ranges(
+                [p.tmin(), inv[0], inv[1], inv[2]],
+                [tmax, inv[0], inv[1], inv[2]],
+                mask,
+            );
+            (lo, hi, p.shear.shared_origin.map(|o| (o, o)))
+        } else {
+            let o = p.o();
+            let (lo, hi) = lane_ranges(
+                [p.tmin(), inv[0], inv[1], inv[2], o[0], o[1], o[2]],
+                [tmax, inv[0], inv[1], inv[2], o[0], o[1], o[2]],
+                mask,
+            );
+            let head = |x: [f32; 7]| [x[0], x[1], x[2], x[3]];
+            (
+                head(lo),
+                head(hi),
+                [0, 1, 2].map(|a| (lo[4 + a], hi[4 + a])),
+            )
+        };
+        let tmin = lo[0];
         // The one-product bounds need every lane's interval to start at 0 or later.
-        let mut enabled = mask != 0 && tmin >= 0.0;
+        let mut enabled = tmin >= 0.0;
         // `round(x * scale)` is monotone in x, so the bound of the lanes' products is the
         // product of the bound (here and for the far reciprocals below).
-        let tcull = range(tmax).1 * ROBUST_FAR_SCALE;
-        (b.node.tmin, b.node.tcull) = (NL::splat(tmin), NL::splat(tcull));
+        b.b.tcull = hi[0] * ROBUST_FAR_SCALE;
+        b.b.tmin = tmin;
         // Triangles: no lane's start above zero. A hit passes its certainty test
         // (`t > δt`), so its exact distance is positive; a lane with `tmin > 0` could
         // report a hit whose exact distance lies a rounding error below `tmin`, which
         // the clamp could cull where the leaf's larger box did not.
-        (b.tri.tmin, b.tri.tcull) = (F4::splat(tmin.min(0.0)), F4::splat(tcull));
+        b.b.tri_tmin = tmin.min(0.0);
         for a in 0..3 {
-            let (o_lo, o_hi) = if shared {
-                (p.shear.shared_origin[a], p.shear.shared_origin[a])
-            } else {
-                range(p.o()[a])
-            };
-            let (i_lo, i_hi) = range(p.inv()[a]);
+            let (o_lo, o_hi) = o_range[a];
+            let (i_lo, i_hi) = (lo[1 + a], hi[1 + a]);
             let (f_lo, f_hi) = (i_lo * ROBUST_FAR_SCALE, i_hi * ROBUST_FAR_SCALE);
             enabled &= f_lo.is_finite() && f_hi.is_finite();
             // A positive reciprocal: distances grow with `p - o`, so the near distance
@@ -146,14 +166,10 @@ impl<NL: Lanes> PacketBounds<NL> {
             } else {
                 (o_hi, o_lo, i_lo)
             };
-            b.node.o_near[a] = NL::splat(o_near);
-            b.node.o_far[a] = NL::splat(o_far);
-            b.node.inv[a] = NL::splat(i_near);
-            b.node.inv_far[a] = [NL::splat(f_lo), NL::splat(f_hi)];
-            b.tri.o_near[a] = F4::splat(o_near);
-            b.tri.o_far[a] = F4::splat(o_far);
-            b.tri.inv[a] = F4::splat(i_near);
-            b.tri.inv_far[a] = [F4::splat(f_lo), F4::splat(f_hi)];
+            b.b.o_near[a] = o_near;
+            b.b.o_far[a] = o_far;
+            b.b.inv[a] = i_near;
+            b.b.inv_far[a] = [f_lo, f_hi];
         }
         b.enabled = enabled;
         b
@@ -173,9 +189,10 @@ impl<NL: Lanes> PacketBounds<NL> {
                 .enumerate()
                 .fold(0, |m, (c, &r)| m | u32::from(r != EMPTY_CHILD) << c);
         }
-        self.node.enters(
+        self.b.enters(
             self.near.map(|p| NL::load(&planes[p])),
             self.far.map(|p| NL::load(&planes[p])),
+            self.b.tmin,
         )
     }
 
@@ -205,27 +222,9 @@ impl<NL: Lanes> PacketBounds<NL> {
         let lo = [0, 1, 2].map(|a| v(0, a).minps(v(1, a)).minps(v(2, a)));
         let hi = [0, 1, 2].map(|a| v(0, a).maxps(v(1, a)).maxps(v(2, a)));
         let plane = |p: usize| if p >= 3 { hi[p - 3] } else { lo[p] };
-        self.tri.enters(self.near.map(plane), self.far.map(plane))
+        self.b
+            .enters(self.near.map(plane), self.far.map(plane), self.b.tri_tmin)
     }
-}
-
-/// The smallest and largest value of the lanes of `mask` (none NaN): masked lanes out of
-/// the way, then a tree of min/max over halves (plain comparisons, which vectorise).
-#[inline(always)]
-fn lane_range<L: Lanes>(v: L, mask: u32) -> (f32, f32) {
-    let lanes = L::mask_from_bits(mask);
-    let mut lo = L::select(lanes, v, L::splat(f32::INFINITY)).to_array();
-    let mut hi = L::select(lanes, v, L::splat(f32::NEG_INFINITY)).to_array();
-    let (lo, hi) = (lo.as_mut(), hi.as_mut());
-    let mut w = L::WIDTH / 2;
-    while w > 0 {
-        for i in 0..w {
-            lo[i] = if lo[i + w] < lo[i] { lo[i + w] } else { lo[i] };
-            hi[i] = if hi[i + w] > hi[i] { hi[i + w] } else { hi[i] };
-        }
-        w /= 2;
-    }
-    (lo[0], hi[0])
 }
 
 #[cfg(test)]

@@ -124,11 +124,7 @@ fn packet_bounds_never_cull_a_child_a_lane_enters() {
                     if node.children[c] == EMPTY_CHILD {
                         continue;
                     }
-                    let bits = if shared {
-                        p.child_test::<true, N>(&node.planes, c, tcull).1
-                    } else {
-                        p.child_test::<false, N>(&node.planes, c, tcull).1
-                    };
+                    let bits = p.child_test(&node.planes, c, tcull).1;
                     if bits & mask != 0 {
                         entered += 1;
                         assert!(cand >> c & 1 == 1, "child {c} culled, lanes {bits:b}");
