@@ -21,7 +21,7 @@
 //! similar magnitude take the `f64` path.
 
 use super::exact_sum::ExactSum;
-use crate::simd::exact_sums::{add7_if_exact, box_sums_if_exact};
+use crate::simd::exact_sums::{add7_if_exact, box_sums_if_exact, exact_bound};
 use glam::Vec3;
 
 /// Index of `Σ w` among the seven sums (`Σ w·L` r, g, b; `Σ w`; `Σ L` r, g, b).
@@ -62,8 +62,7 @@ fn f64_exact(abs: &[f64; 7], ulp_min: i32) -> bool {
     if ulp_min == i32::MAX {
         return true; // no non-zero addend yet: every sum is zero
     }
-    // ulp_min is in -149..=104, so the bound is a normal f64.
-    let bound = f64::from_bits(((ulp_min + 53 + 1023) as u64) << 52);
+    let bound = exact_bound(ulp_min);
     // `&` rather than `all`: seven compares without a branch each.
     abs.iter().fold(true, |ok, &a| ok & (a < bound))
 }

@@ -11,6 +11,15 @@
 use glam::Vec3;
 use wide::{f32x8, f64x4, f64x8, i32x8, u32x4};
 
+/// `2^(ulp_min + 53)`: sums of `f32` addends that are multiples of `2^ulp_min` are
+/// exact in `f64` while every sum of their magnitudes stays below it (the argument of
+/// [`PixelSums`](crate::film::PixelSums)). `ulp_min` is in -149..=104, so the bound is
+/// a normal `f64`.
+#[inline(always)]
+pub fn exact_bound(ulp_min: i32) -> f64 {
+    f64::from_bits(((ulp_min + 53 + 1023) as u64) << 52)
+}
+
 /// Adds the seven `f32` addends `xs` to the `f64` sums `fast` (and their magnitudes to
 /// `abs`, the smallest ulp exponent of the finite non-zero ones to `ulp_min`) if every
 /// sum stays exact: every `abs` below `2^(ulp_min + 53)` (the argument of
@@ -44,8 +53,7 @@ pub fn add7_if_exact(
     a8[..7].copy_from_slice(abs);
     let a = f64x8::new(a8) + v.abs();
     if e_min != i32::MAX {
-        // e_min is in -149..=104, so the bound is a normal f64.
-        let bound = f64::from_bits(((e_min + 53 + 1023) as u64) << 52);
+        let bound = exact_bound(e_min);
         if !a.simd_lt(f64x8::splat(bound)).all() {
             return false;
         }
@@ -131,7 +139,7 @@ pub fn box_sums_if_exact(radiance: &[Vec3]) -> Option<([f64; 3], u64)> {
     let abs = (a.abs + b.abs).to_array();
     if min_magnitude != 0 {
         let ulp_min = ((min_magnitude >> 23) as i32).max(1) - 150;
-        let bound = f64::from_bits(((ulp_min + 53 + 1023) as u64) << 52);
+        let bound = exact_bound(ulp_min);
         if !(abs[0] < bound && abs[1] < bound && abs[2] < bound) {
             return None;
         }

@@ -1343,6 +1343,7 @@ mod tests {
             "{culled} skipped, {hits} hits"
         );
     }
+
     /// [`TrianglePlane::may_cull_lanes`] against [`TrianglePlane::may_cull`] lane by
     /// lane: planes of constant coordinate and tilted ones, points on them (their
     /// vertices, exactly), near and far off both sides, with NaN and infinite
