@@ -91,6 +91,8 @@ pub(crate) struct CameraStaging {
     constant_key: Option<(u64, SamplePlan)>,
     /// The pixels of whole 4x4 blocks, where `whole_block_rays` needs them listed.
     block_pixels: Vec<(u32, u32, u64)>,
+    /// The offsets `whole_block_rays` makes for a caller that does not keep them.
+    unread_offsets: Vec<(f32, f32)>,
     /// The corners of a polygonal aperture.
     polygon: PolygonAperture,
     /// Pinhole direction terms per image column and row (one-offset plans).
@@ -509,7 +511,9 @@ impl CameraSampler {
     /// one offset per pixel and a plain pinhole (the usual 1-sample frame) the rays come
     /// from the blocks straight away; otherwise (and from a block past the image on)
     /// the pixels are listed in `st` first. The same rays, offsets and samples drawn
-    /// as `block_rays` of those pixels.
+    /// as `block_rays` of those pixels; with `offsets` `None` the offsets are not kept
+    /// (and, on the one-offset pinhole path, not written: see
+    /// [`super::pixel_filter::reads_offsets`]).
     ///
     /// Measured (the wavefront's camera stage, bunny 1024x1024, 1 thread): the pixel
     /// list, 16 bytes a pixel built for every block only for `block_rays` to check its
@@ -522,7 +526,7 @@ impl CameraSampler {
         blocks: &[(u32, u32)],
         width: u32,
         st: &mut CameraStaging,
-        offsets: &mut Vec<(f32, f32)>,
+        offsets: Option<&mut Vec<(f32, f32)>>,
         rays: &mut Vec<Ray>,
         drawn: &mut EffectSamplesDrawn,
     ) {
@@ -530,7 +534,9 @@ impl CameraSampler {
             self.draw_constant(seed, st, drawn);
             if let [(ox, oy)] = st.constant[..] {
                 let n = blocks.len() * PACKET_WIDTH;
-                offsets.extend(std::iter::repeat_n((ox, oy), n));
+                if let Some(offsets) = offsets {
+                    offsets.extend(std::iter::repeat_n((ox, oy), n));
+                }
                 rays.reserve(n);
                 let from = self.pinhole_blocks(blocks, (ox, oy), st, rays);
                 if from == blocks.len() {
@@ -548,7 +554,11 @@ impl CameraSampler {
         let mut pixels = std::mem::take(&mut st.block_pixels);
         pixels.clear();
         push_block_pixels(blocks, width, &mut pixels);
+        let mut unread = std::mem::take(&mut st.unread_offsets);
+        let offsets = offsets.unwrap_or(&mut unread);
         self.block_rays(seed, (&pixels, blocks), st, offsets, rays, drawn);
+        unread.clear();
+        st.unread_offsets = unread;
         st.block_pixels = pixels;
     }
 
@@ -1119,33 +1129,38 @@ mod tests {
                 };
                 let mut want_drawn = EffectSamplesDrawn::default();
                 let (want_rays, want_off) = oracle_rays(&camera, &pixels, &mut want_drawn);
-                let mut st = CameraStaging::default();
-                let (mut rays, mut off) = (Vec::new(), Vec::new());
-                let mut drawn = EffectSamplesDrawn::default();
-                // Twice through one staging: the first call's state must not leak.
-                for (from, to) in [(0, inside), (inside, blocks.len())] {
-                    camera.whole_block_rays(
-                        5,
-                        &blocks[from..to],
-                        w,
-                        &mut st,
-                        &mut off,
-                        &mut rays,
-                        &mut drawn,
-                    );
+                // With the offsets kept, and without (the same rays and draws, no
+                // offsets).
+                for keep in [true, false] {
+                    let mut st = CameraStaging::default();
+                    let (mut rays, mut off) = (Vec::new(), Vec::new());
+                    let mut drawn = EffectSamplesDrawn::default();
+                    // Twice through one staging: the first call's state must not leak.
+                    for (from, to) in [(0, inside), (inside, blocks.len())] {
+                        camera.whole_block_rays(
+                            5,
+                            &blocks[from..to],
+                            w,
+                            &mut st,
+                            keep.then_some(&mut off),
+                            &mut rays,
+                            &mut drawn,
+                        );
+                    }
+                    assert_eq!(rays.len(), want_rays.len());
+                    for (i, (g, r)) in rays.iter().zip(&want_rays).enumerate() {
+                        assert_eq!(
+                            g.bits(),
+                            r.bits(),
+                            "{sampler} {filter} eye {eye} lens {lens_n} ray {i}: {g:?} vs {r:?}"
+                        );
+                    }
+                    assert_eq!(off, if keep { &want_off[..] } else { &[] });
+                    assert!(st.unread_offsets.is_empty());
+                    assert_eq!((drawn.lens, drawn.time), (want_drawn.lens, want_drawn.time));
+                    // The pinhole terms were made exactly where the blocks skip the list.
+                    assert_eq!(st.terms.key.is_some(), terms, "{sampler} eye {eye}");
                 }
-                assert_eq!(rays.len(), want_rays.len());
-                for (i, (g, r)) in rays.iter().zip(&want_rays).enumerate() {
-                    assert_eq!(
-                        g.bits(),
-                        r.bits(),
-                        "{sampler} {filter} eye {eye} lens {lens_n} ray {i}: {g:?} vs {r:?}"
-                    );
-                }
-                assert_eq!(off, want_off);
-                assert_eq!((drawn.lens, drawn.time), (want_drawn.lens, want_drawn.time));
-                // The pinhole terms were made exactly where the blocks skip the list.
-                assert_eq!(st.terms.key.is_some(), terms, "{sampler} eye {eye}");
                 cases += 1;
             }
         }

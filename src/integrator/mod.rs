@@ -34,6 +34,7 @@ pub mod sampling;
 pub(crate) mod shade_stage;
 pub mod shader;
 pub mod shadow;
+mod slot_pixels;
 pub mod sobol;
 pub mod texturing;
 pub mod tiles;

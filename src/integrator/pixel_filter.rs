@@ -56,13 +56,24 @@ pub(crate) struct TileOut<'a> {
     pub sums: Option<&'a mut [PixelSums]>,
 }
 
+/// Whether [`resolve_pixels`] reads the eye-sample offsets for `plan` (`sums`: the
+/// tile keeps its pixels' sums): not for one box-filtered ray per pixel without kept
+/// sums, whose value is the ray's radiance alone, so that a caller may leave them
+/// out there (the wavefront's 1-sample frame: 8 bytes a camera ray written for
+/// nothing).
+pub(crate) fn reads_offsets(plan: &SamplePlan, sums: bool) -> bool {
+    let rays = plan.eye_rendered() as usize * per_eye(plan);
+    sums || rays != 1 || plan.filter != super::FilterKind::Box
+}
+
 /// The pixels of a tile at once, each with all its samples: pixel `g` has the
 /// eye-sample offsets `offsets[g * eye..]`, the radiance `radiance[g * rays..]`
 /// (`rays` per pixel) and its place `at[g]` in `out`. Each pixel's sums are built
 /// on the stack and resolved into its value there and then (kept in `out.sums` only
 /// when a partial image asks for them): no per-tile buffer of sums. One ray per pixel
 /// without kept sums (the common frame) skips the sums altogether
-/// ([`PixelSums::one_sample_value`], the same bits).
+/// ([`PixelSums::one_sample_value`], the same bits). `offsets` may be empty where
+/// [`reads_offsets`] says they are not read.
 pub(crate) fn resolve_pixels(
     plan: &SamplePlan,
     offsets: &[(f32, f32)],
@@ -73,6 +84,10 @@ pub(crate) fn resolve_pixels(
 ) {
     let eye = plan.eye_rendered() as usize;
     let rays = eye * per_eye(plan);
+    debug_assert!(
+        offsets.len() == at.len() * eye || !reads_offsets(plan, out.sums.is_some()),
+        "the offsets of every pixel, where they are read"
+    );
     if let Some(sums) = &mut out.sums {
         for (g, &a) in at.iter().enumerate() {
             let s = &mut sums[a as usize];
@@ -88,7 +103,7 @@ pub(crate) fn resolve_pixels(
         }
         return;
     }
-    if rays == 1 && plan.filter == super::FilterKind::Box {
+    if !reads_offsets(plan, false) {
         box_one_ray(radiance, at, nonfinite, out.values);
         return;
     }

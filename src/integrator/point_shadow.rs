@@ -341,7 +341,7 @@ mod tests {
     fn sinks(scene: &Scene, slots: usize) -> Sinks {
         Sinks {
             acc: vec![Vec3::ZERO; slots],
-            slot_pixel: (0..slots as u64).collect(),
+            slot_pixel: (0..slots as u64).collect::<Vec<_>>().into(),
             next: PerChildKind::default(),
             shadow: (0..scene.lights.len())
                 .map(|_| ShadowQueue::default())

@@ -33,6 +33,7 @@ use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::round_lights::{RoundLight, shade_round};
 use super::sampling::PixelRng;
 use super::shader::{ChildKind, Emitted, Shader};
+use super::slot_pixels::SlotPixels;
 use super::tiny_shadow::LaneOccluders;
 use crate::accel::SceneHit;
 use crate::scene::{Light, Scene};
@@ -51,7 +52,7 @@ pub(crate) struct Sinks {
     /// Radiance of each camera sample of the batch in flight.
     pub acc: Vec<Vec3>,
     /// Image index of the pixel of each camera sample of the batch in flight.
-    pub slot_pixel: Vec<u64>,
+    pub slot_pixel: SlotPixels,
     pub next: PerChildKind<Option<RayQueue>>,
     /// One shadow queue per light, so that the rays of a packet converge on one light
     /// (interleaving two lights' rays splits every packet by octant).
@@ -235,7 +236,7 @@ fn shade_scalar(
     let si = batch.interaction(k, material);
     let slot = queue.slot(i);
     let weight = queue.weight(i);
-    let pixel = sinks.slot_pixel[slot as usize];
+    let pixel = sinks.slot_pixel.get(slot);
     let out = &mut sinks.emitted;
     shader.shade_emit(
         batch.dir.get(k),
@@ -511,7 +512,7 @@ fn shade_group_lanes(
     if !(quads || round || scalar_children) {
         return;
     }
-    let point = |k: usize, slot_pixel: &[u64]| {
+    let point = |k: usize, slot_pixel: &SlotPixels| {
         let q = batch.ray[k] as usize;
         let slot = queue.slot(q);
         ShadingPoint {
@@ -526,7 +527,7 @@ fn shade_group_lanes(
             slot,
             weight: queue.weight(q),
             time: queue.rays[q].time,
-            pixel: slot_pixel[slot as usize],
+            pixel: slot_pixel.get(slot),
             path: queue.path(q),
             depth,
         }
@@ -815,7 +816,7 @@ mod tests {
     fn sinks(scene: &Scene, slots: usize) -> Sinks {
         Sinks {
             acc: vec![Vec3::ZERO; slots],
-            slot_pixel: (0..slots as u64).collect(),
+            slot_pixel: (0..slots as u64).collect::<Vec<_>>().into(),
             next: PerChildKind::default(),
             shadow: (0..scene.lights.len() + scene.environment.is_some() as usize)
                 .map(|_| ShadowQueue::default())

@@ -42,7 +42,7 @@ use super::RenderOptions;
 use super::RenderOutput;
 use super::camera_packets::{CameraStaging, block_pixel_indices, push_block_pixels};
 use super::camera_rays::{CameraSampler, SamplePlan};
-use super::pixel_filter::{TileOut, resolve_pixels};
+use super::pixel_filter::{TileOut, reads_offsets, resolve_pixels};
 use super::point_shadow::PointOccluders;
 use super::queues::{PerChildKind, RayQueue, ShadowQueue};
 use super::shade_stage::{LaneShading, ShadeScratch, Sinks, shade_queue};
@@ -199,7 +199,7 @@ impl Workspace {
             current: p.child_queues().map(|on| on.then(RayQueue::default)),
             sinks: Sinks {
                 acc: Vec::new(),
-                slot_pixel: Vec::new(),
+                slot_pixel: Default::default(),
                 next: p.child_queues().map(|on| on.then(RayQueue::default)),
                 // One queue per light, and one for the environment after them.
                 shadow: (0..scene.lights.len() + scene.environment.is_some() as usize)
@@ -307,6 +307,9 @@ fn render_tile(
     let eye = plan.eye_rendered() as usize;
     let mut nonfinite_samples = 0;
     let mut peak = 0;
+    // The eye-sample offsets are kept only where the pixel filter reads them (not for
+    // one box-filtered ray per pixel).
+    let keep_offsets = reads_offsets(&plan, out.sums.is_some());
     // Traces a batch to the end, then filters every pixel whose rays are all done.
     let mut flush = |ws: &mut Workspace, stages: &mut StageTimes| {
         peak = run_waves(&cx, ws, stages).max(peak);
@@ -315,16 +318,23 @@ fn render_tile(
         ws.camera.clear();
         let t = Instant::now();
         let done = (ws.radiance.len() / rays_per_pixel).min(ws.unresolved.len());
+        let offsets = if keep_offsets {
+            &ws.offsets[..done * eye]
+        } else {
+            &[]
+        };
         resolve_pixels(
             &plan,
-            &ws.offsets[..done * eye],
+            offsets,
             &ws.radiance[..done * rays_per_pixel],
             &ws.unresolved[..done],
             &mut nonfinite_samples,
             out,
         );
         ws.unresolved.drain(..done);
-        ws.offsets.drain(..done * eye);
+        if keep_offsets {
+            ws.offsets.drain(..done * eye);
+        }
         ws.radiance.drain(..done * rays_per_pixel);
         stages.resolve += ms_since(t);
     };
@@ -338,6 +348,12 @@ fn render_tile(
     let mut emit = |ws: &mut Workspace, stages: &mut StageTimes, t: &mut Instant, last: bool| {
         let mut generated = std::mem::take(&mut ws.generated);
         generated.clear();
+        if ws.camera.rays.is_empty() {
+            // Into the camera queue's own (empty) buffer, which `append_camera` takes
+            // back whole: the one the last batch's rays were read from, rather than
+            // the other of two buffers taking turns.
+            std::mem::swap(&mut generated, &mut ws.camera.rays);
+        }
         // Whole blocks only: no pixel list.
         let block_mode = ws.pixels.is_empty();
         if block_mode {
@@ -346,7 +362,7 @@ fn render_tile(
                 &ws.blocks,
                 width,
                 &mut ws.staging,
-                &mut ws.offsets,
+                keep_offsets.then_some(&mut ws.offsets),
                 &mut generated,
                 &mut ws.sinks.drawn,
             );
@@ -390,7 +406,11 @@ fn render_tile(
                     pixels[p].2
                 }
             };
-            if rays_per_pixel == 1 && block_mode {
+            if rays_per_pixel == 1 && block_mode && i == 0 && end == total {
+                // The whole chunk's blocks: their pixels are made where they are read
+                // (`SlotPixels`).
+                ws.sinks.slot_pixel.push_blocks(&ws.blocks, width);
+            } else if rays_per_pixel == 1 && block_mode {
                 // A block's 16 indices at a time, into the spare capacity with one
                 // length update for the whole run: a whole block written in place
                 // (`block_indices`; a slice of varying length is a call to memcpy
@@ -399,7 +419,7 @@ fn render_tile(
                 // the length stored and reloaded with the capacity per block: its
                 // scalar stores were a third of the emit closure's perf samples
                 // (bunny 4096x4096, 1 thread).
-                let slot_pixel = &mut ws.sinks.slot_pixel;
+                let slot_pixel = ws.sinks.slot_pixel.listed();
                 slot_pixel.reserve(end - i);
                 let spare = &mut slot_pixel.spare_capacity_mut()[..end - i];
                 let w = width as u64;
@@ -425,6 +445,7 @@ fn render_tile(
             } else if rays_per_pixel == 1 {
                 ws.sinks
                     .slot_pixel
+                    .listed()
                     .extend(pixels[i..end].iter().map(|p| p.2));
             } else {
                 // Pixel by pixel, a run of its rays at a time (a division per ray
@@ -432,7 +453,7 @@ fn render_tile(
                 // spare capacity with one length update for the whole run (an
                 // `extend` per pixel was an out-of-line call, the length reloaded
                 // after each).
-                let slot_pixel = &mut ws.sinks.slot_pixel;
+                let slot_pixel = ws.sinks.slot_pixel.listed();
                 slot_pixel.reserve(end - i);
                 let spare = &mut slot_pixel.spare_capacity_mut()[..end - i];
                 let mut k = i;
@@ -446,6 +467,7 @@ fn render_tile(
                 // the length, without a gap (`k` goes from `i` to `end`).
                 unsafe { slot_pixel.set_len(slot_pixel.len() + (end - i)) };
             }
+            debug_assert_eq!(ws.sinks.slot_pixel.len(), ws.sinks.acc.len());
             i = end;
             if ws.camera.rays.len() >= batch {
                 stages.camera += ms_since(*t);
