@@ -313,7 +313,14 @@ fn render_tile(
     // Traces a batch to the end, then filters every pixel whose rays are all done.
     let mut flush = |ws: &mut Workspace, stages: &mut StageTimes| {
         peak = run_waves(&cx, ws, stages).max(peak);
-        ws.radiance.append(&mut ws.sinks.acc);
+        if ws.radiance.is_empty() {
+            // Every pixel before was resolved (one ray per pixel, or whole pixels per
+            // batch): the accumulators are the radiance, taken without a copy.
+            std::mem::swap(&mut ws.radiance, &mut ws.sinks.acc);
+            ws.sinks.acc.clear();
+        } else {
+            ws.radiance.append(&mut ws.sinks.acc);
+        }
         ws.sinks.slot_pixel.clear();
         ws.camera.clear();
         let t = Instant::now();
