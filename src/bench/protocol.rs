@@ -45,6 +45,20 @@ impl SecondaryLanes {
         let v = |a: &[[f32; 16]; 3]| Vec3::new(a[0][k], a[1][k], a[2][k]);
         Ray::segment(v(&self.o), v(&self.d), 0.0, self.tmax[k])
     }
+
+    /// Lane `k` written into lane `i` of `packet`: the fields of [`ray`](Self::ray),
+    /// copied array to array (through a `Ray`, each field was read back by glam's
+    /// `Index`, a `match` per component).
+    #[inline(always)]
+    fn write(&self, k: usize, packet: &mut RayPacket, i: usize) {
+        for a in 0..3 {
+            packet.origin[a][i] = self.o[a][k];
+            packet.dir[a][i] = self.d[a][k];
+        }
+        packet.tmin[i] = 0.0;
+        packet.tmax[i] = self.tmax[k];
+        packet.time[i] = 0.0;
+    }
 }
 
 /// The fixed ray set over one mesh.
@@ -56,21 +70,10 @@ pub struct Protocol {
     pub normals: Vec<Vec3>,
 }
 
-/// Pixel coordinates of an 8x8 tile at (tx, ty) in 4x4-block order, clipped to the image.
-fn tile_pixels(tx: u32, ty: u32, w: u32, h: u32, out: &mut Vec<(u32, u32)>) {
-    out.clear();
-    for by in (0..TILE).step_by(4) {
-        for bx in (0..TILE).step_by(4) {
-            for y in 0..4 {
-                for x in 0..4 {
-                    let (px, py) = (tx + bx + x, ty + by + y);
-                    if px < w && py < h {
-                        out.push((px, py));
-                    }
-                }
-            }
-        }
-    }
+/// Pixel `k` (row order) of the 4x4 block whose top left pixel is `(x0, y0)`.
+#[inline(always)]
+fn block_pixel(x0: u32, y0: u32, k: usize) -> (u32, u32) {
+    (x0 + k as u32 % 4, y0 + k as u32 / 4)
 }
 
 impl Protocol {
@@ -126,8 +129,10 @@ impl Protocol {
         }
     }
 
-    /// The secondary rays (`workload` shadow or diffuse) of the lanes `hit` of a
-    /// 16-pixel `block` (whose camera rays are in `camera`), computed sixteen at a time:
+    /// The secondary rays (`workload` shadow or diffuse) of the lanes `hit` of the 4x4
+    /// block at `(x0, y0)` (lane `k` is pixel `(x0 + k % 4, y0 + k / 4)`; its camera
+    /// rays are in `camera`, as `BenchCamera::block_into` makes them), computed sixteen
+    /// at a time:
     /// the arithmetic of `secondary_ray` (the test's oracle) lane by lane (the same
     /// operations in the same order, no fused multiply-add; IEEE division and square
     /// root round the same in lanes; the diffuse rays' random numbers, sine and cosine
@@ -141,7 +146,7 @@ impl Protocol {
     fn secondary_lanes(
         &self,
         workload: Workload,
-        block: &[(u32, u32)],
+        (x0, y0): (u32, u32),
         camera: &RayPacket,
         hit: u32,
         p: &PrimaryHits,
@@ -158,7 +163,7 @@ impl Protocol {
         while m != 0 {
             let k = m.trailing_zeros() as usize;
             m &= m - 1;
-            let (x, y) = block[k];
+            let (x, y) = block_pixel(x0, y0, k);
             let i = (y * w + x) as usize;
             t[k] = p.t[i];
             let nk = self.normals[p.prim[i] as usize];
@@ -232,7 +237,6 @@ impl Protocol {
             .with_max_len(1)
             .map(|(band, (t_band, prim_band))| {
                 let y0 = band as u32 * BAND;
-                let mut pixels = Vec::with_capacity(64);
                 // A tile's valid rays in order, as four SoA packets of sixteen for packet
                 // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
                 let soa = mode.takes_packets();
@@ -249,25 +253,65 @@ impl Protocol {
                 let mut count = 0u64;
                 for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
                     for tx in (0..w).step_by(TILE as usize) {
-                        tile_pixels(tx, ty, w, h, &mut pixels);
                         rays.clear();
                         let mut n = 0;
-                        // A whole tile: four 4x4 blocks in row order (`tile_pixels`).
-                        let whole = pixels.len() == 64;
-                        for (b, block) in pixels.chunks(16).enumerate() {
-                            let local = |(x, y): (u32, u32)| ((y - y0) * w + x) as usize;
+                        let local = |(x, y): (u32, u32)| ((y - y0) * w + x) as usize;
+                        // By 4x4 block (row order), by row in a block; lane `k` of a
+                        // block is its pixel `(k % 4, k / 4)` whether or not the image
+                        // clips it, and a tile's rays are the blocks' rays in order,
+                        // sixteen to a packet.
+                        //
+                        // Why (issue 12, pk20): the tile's pixels were listed one by one
+                        // (`tile_pixels`, a `Vec` push per pixel), a secondary pass
+                        // branched per pixel on its primary hit (mispredicted along the
+                        // silhouette), made camera rays through the pixel list
+                        // (`packet_into`) and copied each ray into its packet through a
+                        // `Ray`: in `perf record` of `examples/stream_profile bunny.obj
+                        // bvh8-packet shadow 80` (AVX-512) the pass's closure was 31 % of
+                        // a shadow pass and `packet_into` 4.2 %, the branch alone 8.7 %.
+                        // The timed region is unchanged (the protocol's: ray generation
+                        // from the stored primary hits, tracing, the per-pixel writes).
+                        // The load of a row's primary ids still stalls (20 % of the
+                        // closure's samples); tried, no win: the ids and distances of the
+                        // tile two tiles ahead prefetched at each tile's start (eight rows,
+                        // `simd::prefetch`), two interleaved pairs of `perf record` of
+                        // `stream_profile bunny.obj bvh8-packet shadow 60` (cpu 1.00):
+                        // closure 28.97 / 29.51 % of the pass, medians 12.01 / 11.85
+                        // Mrays/s, with it 34.73 / 32.26 %, 11.78 / 11.82.
+                        for (bx, by) in [(0, 0), (4, 0), (0, 4), (4, 4)] {
+                            let (x0, yb) = (tx + bx, ty + by);
+                            if x0 >= w || yb >= h {
+                                continue;
+                            }
+                            let (cols, rows) = ((w - x0).min(4) as usize, (h - yb).min(4));
                             if workload == Workload::Primary {
-                                if whole {
-                                    let (bx, by) = block[0];
-                                    self.camera.block_into(bx, by, &mut packets[b]);
+                                // the lanes inside the image
+                                let inside =
+                                    (0..rows).fold(0u32, |m, r| m | ((1 << cols) - 1) << (4 * r));
+                                // A whole block starting a packet is made in place.
+                                let whole = inside == 0xffff && n % 16 == 0;
+                                let made = if whole {
+                                    &mut packets[n / 16]
                                 } else {
-                                    self.camera.packet_into(block, &mut packets[b]);
+                                    &mut camera
+                                };
+                                self.camera.block_into(x0, yb, made);
+                                if whole && !soa {
+                                    rays.extend((0..16).map(|k| packets[n / 16].ray(k)));
                                 }
-                                if !soa {
-                                    rays.extend((0..block.len()).map(|k| packets[b].ray(k)));
-                                }
-                                for &px in block {
-                                    slots[n] = local(px);
+                                let mut m = inside;
+                                while m != 0 {
+                                    let k = m.trailing_zeros() as usize;
+                                    m &= m - 1;
+                                    if !whole {
+                                        let r = camera.ray(k);
+                                        if soa {
+                                            packets[n / 16].set(n % 16, &r);
+                                        } else {
+                                            rays.push(r);
+                                        }
+                                    }
+                                    slots[n] = local(block_pixel(x0, yb, k));
                                     n += 1;
                                 }
                                 continue;
@@ -275,35 +319,36 @@ impl Protocol {
                             let Some(p) = primary else {
                                 unreachable!("secondary workloads need primary hits")
                             };
-                            // Secondary rays start from the camera rays' hits: the
-                            // block's pixels with a primary hit, in order.
+                            // Secondary rays start from the camera rays' hits: the pixels
+                            // with a primary hit. Every pixel is first written as a miss
+                            // (a hit's result overwrites it after tracing), row by row,
+                            // and the hit bits taken from a row's ids: no branch per pixel.
                             let mut hit = 0u32;
-                            for (k, &(x, y)) in block.iter().enumerate() {
-                                if p.prim[(y * w + x) as usize] == u32::MAX {
-                                    t_band[local((x, y))] = f32::NAN;
-                                    prim_band[local((x, y))] = u32::MAX;
-                                } else {
-                                    hit |= 1 << k;
+                            for r in 0..rows {
+                                let (i, l) = (((yb + r) * w + x0) as usize, local((x0, yb + r)));
+                                for (c, &id) in p.prim[i..i + cols].iter().enumerate() {
+                                    hit |= u32::from(id != u32::MAX) << (4 * r as usize + c);
                                 }
+                                t_band[l..l + cols].fill(f32::NAN);
+                                prim_band[l..l + cols].fill(u32::MAX);
                             }
                             // No camera rays for a block the mesh misses (Embree's
                             // harness computes a pixel's camera ray only where it hit).
                             if hit == 0 {
                                 continue;
                             }
-                            self.camera.packet_into(block, &mut camera);
-                            let lanes = self.secondary_lanes(workload, block, &camera, hit, p);
+                            self.camera.block_into(x0, yb, &mut camera);
+                            let lanes = self.secondary_lanes(workload, (x0, yb), &camera, hit, p);
                             let mut m = hit;
                             while m != 0 {
                                 let k = m.trailing_zeros() as usize;
                                 m &= m - 1;
-                                let r = lanes.ray(k);
                                 if soa {
-                                    packets[n / 16].set(n % 16, &r);
+                                    lanes.write(k, &mut packets[n / 16], n % 16);
                                 } else {
-                                    rays.push(r);
+                                    rays.push(lanes.ray(k));
                                 }
-                                slots[n] = local(block[k]);
+                                slots[n] = local(block_pixel(x0, yb, k));
                                 n += 1;
                             }
                         }
@@ -502,31 +547,36 @@ mod tests {
             let (o, d) = (r.origin.to_array(), r.dir.to_array());
             [o[0], o[1], o[2], d[0], d[1], d[2], r.tmin, r.tmax, r.time].map(f32::to_bits)
         };
-        let (mut pixels, mut camera) = (Vec::new(), RayPacket::default());
+        let mut camera = RayPacket::default();
         for workload in [Workload::Shadow, Workload::Diffuse] {
             let mut checked = 0u64;
-            for ty in (0..h).step_by(TILE as usize) {
-                for tx in (0..w).step_by(TILE as usize) {
-                    tile_pixels(tx, ty, w, h, &mut pixels);
-                    for block in pixels.chunks(16) {
-                        let hit = block.iter().enumerate().fold(0u32, |m, (k, &(x, y))| {
-                            m | u32::from(primary.prim[(y * w + x) as usize] != u32::MAX) << k
-                        });
-                        protocol.camera.packet_into(block, &mut camera);
-                        let lanes =
-                            protocol.secondary_lanes(workload, block, &camera, hit, &primary);
-                        for (k, &(x, y)) in block.iter().enumerate() {
-                            let i = (y * w + x) as usize;
-                            if hit >> k & 1 == 0 {
-                                continue;
-                            }
-                            let dir = protocol.camera.dir(x, y);
-                            let (t, prim) = (primary.t[i], primary.prim[i]);
-                            let want = protocol.secondary_ray(workload, x, y, dir, t, prim);
-                            let got = lanes.ray(k);
-                            assert_eq!(bits(&got), bits(&want), "{workload:?} ({x}, {y})");
-                            checked += 1;
-                        }
+            // every 4x4 block, those the image clips included
+            for y0 in (0..h).step_by(4) {
+                for x0 in (0..w).step_by(4) {
+                    let in_image = |(x, y): (u32, u32)| x < w && y < h;
+                    let hit = (0..16).fold(0u32, |m, k| {
+                        let (x, y) = block_pixel(x0, y0, k);
+                        let hit =
+                            in_image((x, y)) && primary.prim[(y * w + x) as usize] != u32::MAX;
+                        m | u32::from(hit) << k
+                    });
+                    protocol.camera.block_into(x0, y0, &mut camera);
+                    let lanes =
+                        protocol.secondary_lanes(workload, (x0, y0), &camera, hit, &primary);
+                    for k in (0..16).filter(|k| hit >> k & 1 == 1) {
+                        let (x, y) = block_pixel(x0, y0, k);
+                        let i = (y * w + x) as usize;
+                        let dir = protocol.camera.dir(x, y);
+                        let (t, prim) = (primary.t[i], primary.prim[i]);
+                        let want = protocol.secondary_ray(workload, x, y, dir, t, prim);
+                        let got = lanes.ray(k);
+                        assert_eq!(bits(&got), bits(&want), "{workload:?} ({x}, {y})");
+                        // and written straight into a packet's lane, the same ray
+                        let mut packet = RayPacket::default();
+                        (packet.tmin, packet.time) = ([f32::NAN; 16], [f32::NAN; 16]);
+                        lanes.write(k, &mut packet, 15 - k);
+                        assert_eq!(bits(&packet.ray(15 - k)), bits(&want));
+                        checked += 1;
                     }
                 }
             }

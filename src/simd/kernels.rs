@@ -215,55 +215,95 @@ fn edge_lanes(
     }
 }
 
-/// The rays of a packet prepared for triangle tests that share one axis permutation
-/// (the caller splits packets so that they do): per-lane origins and shear constants.
+/// The shear constants of a packet's rays for triangle tests that share one axis
+/// permutation (the caller splits packets so that they do). The rays' origins and
+/// interval starts are passed to the tests beside it, from where the caller keeps them:
+/// a copy here (as before) was three 64-byte origin vectors and `tmin` written per
+/// packet group, in 32-byte halves, and read back whole.
 #[derive(Clone, Copy)]
 pub struct PacketShear<L: Lanes> {
-    pub o: [L; 3],
-    /// The origin every lane shares, when they do (camera rays): then `corner - o` is
-    /// computed once in scalar and broadcast, with the same result in every lane.
+    /// The origin every lane shares, when they do (camera rays): the whole-packet
+    /// bounds then skip the origins' lane reductions.
     pub shared_origin: [f32; 3],
     pub kx: usize,
     pub ky: usize,
     pub kz: usize,
     pub sx: L,
     pub sy: L,
-    pub sz: L,
-    pub tmin: L,
+    /// `-sz` (`sz = 1 / d[kz]`), for the depths of the negated corners (see
+    /// [`triangle_packet`]).
+    pub neg_sz: L,
 }
 
-/// A packet against triangle `lane` of group `g`: `(t, u, v, hit bits)` for lanes in `active` with a
-/// hit in `(tmin, tmax)`. Lanes with an edge function within its error bound of zero
+impl<L: Lanes> PacketShear<L> {
+    /// The shear of rays with directions `d` (`inv_z = 1 / d[kz]`) for the axis
+    /// permutation `(kx, ky, kz)`: `RayQuery::new`'s constants, lane by lane.
+    #[inline(always)]
+    pub fn new(d: &[L; 3], inv_z: L, (kx, ky, kz): (usize, usize, usize)) -> Self {
+        PacketShear {
+            shared_origin: [0.0; 3],
+            kx,
+            ky,
+            kz,
+            sx: d[kx] * inv_z,
+            sy: d[ky] * inv_z,
+            neg_sz: L::splat(-1.0) * inv_z,
+        }
+    }
+}
+
+/// A packet (origins `o`, interval starts `tmin`, shear `p`) against triangle `lane` of
+/// group `g`: `(t, u, v, hit bits)` for lanes in `active` with a hit in `(tmin, tmax)`. Lanes with an edge function within its error bound of zero
 /// (exactly zero included) are returned in `edge` for the caller to redo with the
 /// scalar test, which recomputes those edges in f64.
 ///
-/// `SHARED`: every lane has the origin `p.shared_origin`.
+/// Every lane computes the scalar test's values from the corners' negated
+/// translations `o - p` (the scalar test, `geometry::intersect_triangle`, computes `p -
+/// o`): bit for bit their negation, as rounding to nearest is symmetric, but for the
+/// sign of a zero (`x - x` is `+0` both ways). The sheared coordinates `ax .. cy` are
+/// then negated too (`(-a) - s (-b)` is `-(a - s b)`), the edge functions `u, v, w` (sums
+/// of products of two of them) and the depths `az, bz, cz` (taken with `-sz`) are the
+/// scalar test's, again but for the signs of zeros. Those signs reach no answer: a
+/// zero edge function is within its error bound, so its lane is redone by the scalar
+/// test (`edge`); a nonzero sum does not depend on the signs of its zero terms, nor a
+/// comparison or an absolute value on the sign of a zero; and a reported hit has `t >
+/// delta_t >= 0`, so `t` and the `t_scaled` it comes from are nonzero. Why: the corner
+/// is then broadcast straight from memory into the subtraction (one instruction per
+/// coordinate; a broadcast can only be a subtraction's second operand), where `p - o`
+/// took a broadcast and a subtraction, or with an origin shared by every lane a scalar
+/// subtraction and a broadcast.
 #[inline(always)]
-pub fn triangle_packet<L: Lanes, const SHARED: bool>(
+pub fn triangle_packet<L: Lanes>(
+    o: &[L; 3],
+    tmin: L,
     p: &PacketShear<L>,
     g: &TriGroup4,
     lane: usize,
     tmax: L,
     active: u32,
 ) -> (L, L, L, u32, u32) {
-    triangle_packet_by::<L, SHARED>(p, |c, k| g.v[c][k][lane], tmax, active)
+    triangle_packet_by::<L>(o, tmin, p, |c, k| g.v[c][k][lane], tmax, active)
 }
 
 /// [`triangle_packet`] for a triangle given by its corners (the tiny-scene lane path,
 /// `simd/tiny.rs`, whose triangles are not in leaf groups).
 #[inline(always)]
-pub fn triangle_packet_corners<L: Lanes, const SHARED: bool>(
+pub fn triangle_packet_corners<L: Lanes>(
+    o: &[L; 3],
+    tmin: L,
     p: &PacketShear<L>,
     corners: &[Vec3; 3],
     tmax: L,
     active: u32,
 ) -> (L, L, L, u32, u32) {
-    triangle_packet_by::<L, SHARED>(p, |c, k| corners[c][k], tmax, active)
+    triangle_packet_by::<L>(o, tmin, p, |c, k| corners[c][k], tmax, active)
 }
 
 /// The packet triangle test with corner coordinate `k` of corner `c` read by `corner`.
 #[inline(always)]
-fn triangle_packet_by<L: Lanes, const SHARED: bool>(
+fn triangle_packet_by<L: Lanes>(
+    o: &[L; 3],
+    tmin: L,
     p: &PacketShear<L>,
     corner: impl Fn(usize, usize) -> f32,
     tmax: L,
@@ -276,13 +316,8 @@ fn triangle_packet_by<L: Lanes, const SHARED: bool>(
     // `examples/stream_profile bunny.obj bvh8-packet shadow 1` (warm-up + 1 pass, same
     // checksums): `packet_any` 328.0 M -> 296.3 M instructions (-9.7 %), `packet_closest`
     // (its primary pass) 245.5 M -> 233.3 M (-5.0 %).
-    let rel = |c: usize, k: usize| {
-        if SHARED {
-            L::splat(corner(c, k) - p.shared_origin[k])
-        } else {
-            L::splat(corner(c, k)) - p.o[k]
-        }
-    };
+    // Negated: `o - p` (see `triangle_packet`).
+    let rel = |c: usize, k: usize| o[k] - L::splat(corner(c, k));
     let (a_x, a_y, a_z) = (rel(0, kx), rel(0, ky), rel(0, kz));
     let (b_x, b_y, b_z) = (rel(1, kx), rel(1, ky), rel(1, kz));
     let (c_x, c_y, c_z) = (rel(2, kx), rel(2, ky), rel(2, kz));
@@ -307,7 +342,7 @@ fn triangle_packet_by<L: Lanes, const SHARED: bool>(
         return (zero, zero, zero, 0, edge);
     }
     let det = u + v + w;
-    let (az, bz, cz) = (p.sz * a_z, p.sz * b_z, p.sz * c_z);
+    let (az, bz, cz) = (p.neg_sz * a_z, p.neg_sz * b_z, p.neg_sz * c_z);
     let t_scaled = u * az + v * bz + w * cz;
     let t = t_scaled / det;
     let rcp = L::splat(1.0) / det;
@@ -315,7 +350,7 @@ fn triangle_packet_by<L: Lanes, const SHARED: bool>(
     let bits = inside
         & !det.eq(zero).bitmask()
         & det.is_finite().bitmask()
-        & t.gt(p.tmin).bitmask()
+        & t.gt(tmin).bitmask()
         & t.lt(tmax).bitmask()
         & t.gt(delta_t).bitmask();
     (t, v * rcp, w * rcp, bits, edge)
@@ -445,5 +480,110 @@ mod tri_group_tests {
                 assert_eq!(g.valid_bits(), pattern, "{:?}", g.ids);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod triangle_packet_tests {
+    use super::*;
+    use crate::simd::F16;
+
+    /// The packet triangle test (negated translations, `triangle_packet`) against the
+    /// scalar watertight test, lane by lane, where the signs of zeros are at stake:
+    /// corners and origins on a coarse grid of halves (so `p - o`, the sheared
+    /// coordinates and the edge functions are often exactly zero), origins with `-0.0`
+    /// and `+0.0` components mixed in one packet, directions along an axis and on
+    /// diagonals. Every lane the test does not hand back as `edge` must give the scalar
+    /// answer: hit or miss, and `t`, `u`, `v` bit for bit.
+    #[test]
+    fn packet_triangle_test_is_the_scalar_test_bit_for_bit() {
+        let mut s = 0x2545_f491u32;
+        let mut next = move |n: u32| {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s % n
+        };
+        // -2, -1.5, .., 2, with both zeros
+        let grid = move |r: &mut dyn FnMut(u32) -> u32| match r(10) {
+            9 => -0.0f32,
+            k => (k as f32 - 4.0) * 0.5,
+        };
+        let (mut compared, mut hits, mut zero_sign_lanes) = (0u32, 0u32, 0u32);
+        for trial in 0..20_000 {
+            let corners: [Vec3; 3] = std::array::from_fn(|_| {
+                Vec3::new(grid(&mut next), grid(&mut next), grid(&mut next))
+            });
+            // One direction family per packet (a shared permutation), each lane's
+            // direction nudged off it; origins shared (with mixed zero signs) or not.
+            let kz = next(3) as usize;
+            let sign = if next(2) == 0 { 1.0 } else { -1.0 };
+            let shared = trial % 2 == 0;
+            let base = Vec3::new(grid(&mut next), grid(&mut next), grid(&mut next));
+            let rays: [Ray; 16] = std::array::from_fn(|i| {
+                let mut d = [0.0f32; 3];
+                d[kz] = sign * 4.0;
+                for (a, x) in d.iter_mut().enumerate() {
+                    if a != kz {
+                        *x = (next(7) as f32 - 3.0) * [0.0, 0.5, 1.0][(i + a) % 3];
+                    }
+                }
+                let mut o = if shared {
+                    base
+                } else {
+                    Vec3::new(grid(&mut next), grid(&mut next), grid(&mut next))
+                };
+                // the zero of a shared origin's component in either sign
+                for a in 0..3 {
+                    if o[a] == 0.0 && next(2) == 0 {
+                        o[a] = -o[a];
+                    }
+                }
+                o[kz] -= sign * 3.0;
+                let tmax = [f32::INFINITY, 2.0, 0.5][i % 3];
+                Ray::segment(o, Vec3::from_array(d), 0.0, tmax)
+            });
+            let queries = rays.map(|r| RayQuery::new(&r).expect("valid ray"));
+            let perm = (queries[0].kx, queries[0].ky, queries[0].kz);
+            let lanes = |f: &dyn Fn(&Ray) -> f32| F16::from_array(rays.each_ref().map(f));
+            let o = [0, 1, 2].map(|a| lanes(&|r| r.origin[a]));
+            let d = [0, 1, 2].map(|a| lanes(&|r| r.dir[a]));
+            let shear = PacketShear::new(&d, F16::splat(1.0) / d[kz], perm);
+            let (tmin, tmax) = (lanes(&|r| r.tmin), lanes(&|r| r.tmax));
+            let active = 0xffff;
+            let (t, u, v, bits, edge) =
+                triangle_packet_corners(&o, tmin, &shear, &corners, tmax, active);
+            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+            for (i, q) in queries.iter().enumerate() {
+                assert_eq!((q.kx, q.ky, q.kz), perm);
+                if edge >> i & 1 == 1 {
+                    assert_eq!(bits >> i & 1, 0, "an edge lane is left to the scalar test");
+                    continue;
+                }
+                compared += 1;
+                let [p0, p1, p2] = corners;
+                zero_sign_lanes +=
+                    u32::from((0..3).any(|a| corners.iter().any(|c| c[a] == q.origin[a])));
+                let scalar = intersect_triangle(q, p0, p1, p2, q.tmax);
+                assert_eq!(
+                    bits >> i & 1 == 1,
+                    scalar.is_some(),
+                    "trial {trial} lane {i}"
+                );
+                if let Some(h) = scalar {
+                    hits += 1;
+                    let lane = [t[i], u[i], v[i]].map(f32::to_bits);
+                    assert_eq!(
+                        lane,
+                        [h.t, h.u, h.v].map(f32::to_bits),
+                        "trial {trial} lane {i}"
+                    );
+                }
+            }
+        }
+        assert!(
+            hits > 10_000 && zero_sign_lanes > 100_000,
+            "too few cases: {hits} hits, {zero_sign_lanes} lanes with a zero translation of {compared}"
+        );
     }
 }

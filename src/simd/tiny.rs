@@ -110,10 +110,6 @@ pub struct TinyGroup {
     pub shear: PacketShear<TinyLanes>,
     /// Bits of the lanes holding a ray.
     pub mask: u32,
-    /// Every lane of `mask` has the origin `shear.shared_origin` (the light samples of
-    /// one shading point): the triangle test subtracts it from the corners once, in
-    /// scalar ([`triangle_packet_corners`] with `SHARED`, the same f32 differences).
-    shared: bool,
 }
 
 impl TinyGroup {
@@ -151,24 +147,16 @@ impl TinyGroup {
         TinyGroup {
             lanes: RayLanes { o, d, tmin },
             tmax,
-            shear: PacketShear {
-                o,
-                shared_origin: [0.0; 3],
-                kx,
-                ky,
-                kz,
-                sx: d[kx] * sz,
-                sy: d[ky] * sz,
-                sz,
-                tmin,
-            },
+            shear: PacketShear::new(&d, sz, (kx, ky, kz)),
             mask,
-            shared: false,
         }
     }
 
     /// [`from_lanes`](Self::from_lanes) for lanes that all start at `origin` (every
-    /// lane of `mask` holds exactly these coordinates).
+    /// lane of `mask` holds exactly these coordinates), recorded in
+    /// `shear.shared_origin`. The lane tests need no special case for it: the triangle
+    /// test translates the corners by each lane's own origin in one instruction per
+    /// coordinate either way (`triangle_packet`).
     #[inline(always)]
     pub fn from_lanes_at(
         key: usize,
@@ -179,7 +167,6 @@ impl TinyGroup {
     ) -> TinyGroup {
         let mut g = Self::from_lanes(key, lanes, tmax, mask);
         g.shear.shared_origin = origin.to_array();
-        g.shared = true;
         g
     }
 
@@ -208,11 +195,8 @@ impl TinyGroup {
         tmax: TinyLanes,
         live: u32,
     ) -> (TinyLanes, TinyLanes, TinyLanes, u32, u32) {
-        if self.shared {
-            triangle_packet_corners::<TinyLanes, true>(&self.shear, corners, tmax, live)
-        } else {
-            triangle_packet_corners::<TinyLanes, false>(&self.shear, corners, tmax, live)
-        }
+        let l = &self.lanes;
+        triangle_packet_corners(&l.o, l.tmin, &self.shear, corners, tmax, live)
     }
 
     /// Closest hits over `triangles` then `spheres` (index order, strict `t < tmax`),
@@ -352,14 +336,9 @@ impl TinyGroup {
     #[inline(always)]
     pub fn beyond(&self, corners: &[Vec3; 3], live: u32) -> u32 {
         let kz = self.shear.kz;
-        let depth = |c: &Vec3| {
-            let a_z = if self.shared {
-                TinyLanes::splat(c[kz] - self.shear.shared_origin[kz])
-            } else {
-                TinyLanes::splat(c[kz]) - self.shear.o[kz]
-            };
-            self.shear.sz * a_z
-        };
+        // Negated twice, as in the triangle test (`triangle_packet`): the same depth but
+        // for the sign of a zero, which the comparison does not see.
+        let depth = |c: &Vec3| self.shear.neg_sz * (self.lanes.o[kz] - TinyLanes::splat(c[kz]));
         // Per corner, as `fl(x (1 - 2^-20))` is monotone in `x`: the least depth passes
         // where all do. A NaN depth fails its comparison and keeps the lane.
         let margin = TinyLanes::splat(BEYOND_MARGIN);

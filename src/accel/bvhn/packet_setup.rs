@@ -265,15 +265,8 @@ impl<L: Lanes> PacketSetup<L> {
             near,
             far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
             shear: PacketShear {
-                o: self.o,
                 shared_origin,
-                kx,
-                ky,
-                kz,
-                sx: self.d[kx] * sz,
-                sy: self.d[ky] * sz,
-                sz,
-                tmin: self.tmin,
+                ..PacketShear::new(&self.d, sz, (kx, ky, kz))
             },
         }
     }
