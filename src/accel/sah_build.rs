@@ -608,14 +608,11 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
 /// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
 ///
-/// An array that may be recycled (at least [`RECYCLE_MIN_BYTES`]: a mapped block of
-/// its own) is advised over every 4 KiB page it touches, not only its whole 2 MiB
+/// The advice covers every 4 KiB page the array touches, not only its whole 2 MiB
 /// pages (only those get huge pages either way): advice on part of a mapping splits
 /// it in several, and `mremap` refuses a range across mappings (`EFAULT`), so glibc's
 /// `realloc` of the array ([`SpareRefs::into_vec`]) then copied all of it into a fresh
-/// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages). Smaller
-/// arrays, heap blocks that may share their first and last page, keep the advice to
-/// their whole huge pages.
+/// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages).
 fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
@@ -624,19 +621,13 @@ fn advise_huge_pages(ptr: *mut u8, len: usize) {
         if len < 2 * HUGE {
             return;
         }
-        let (first, last) = (ptr as usize, ptr as usize + len);
-        let (start, end) = if len >= RECYCLE_MIN_BYTES {
-            (first / PAGE * PAGE, last.next_multiple_of(PAGE))
-        } else {
-            (first.next_multiple_of(HUGE), last / HUGE * HUGE)
-        };
-        if end > start {
-            // SAFETY: the range is (at most) the pages the live allocation lies in;
-            // MADV_HUGEPAGE only changes how pages are backed, never their contents, so
-            // it leaves anything else on the first and last page as it was.
-            unsafe {
-                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
-            }
+        let start = ptr as usize / PAGE * PAGE;
+        let end = (ptr as usize + len).next_multiple_of(PAGE);
+        // SAFETY: the range is the pages the live allocation lies in; MADV_HUGEPAGE
+        // only changes how pages are backed, never their contents, so it leaves
+        // anything else on the first and last page as it was.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
         }
     }
     #[cfg(not(target_os = "linux"))]
