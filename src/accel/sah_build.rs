@@ -525,6 +525,22 @@ fn build_tree_sampling<P: Primitives>(
 /// against 53.9 s. Not built yet: partitioning the top levels in place (no scratch
 /// array: 32 bytes per triangle fewer fresh pages; it changes the order of references,
 /// hence the sampled splits).
+///
+/// Dead end (issue 12, helper big20, 2026-11-28; the code is commit c923f96 on branch
+/// `big20`, reverted): the triangle groups written into the dead reference array
+/// (`realloc` of the 320 MB block to the groups' 419 MB, which glibc does with
+/// `mremap`, no copy; the huge-page advice then has to cover the block's every page,
+/// else the advised middle is a mapping of its own and `mremap` fails with `EFAULT`,
+/// so glibc copies). perf of `build_time 10000000 3 1` before: page zeroing
+/// (`clear_page_erms`) 26 % of the samples, faults 34 %, the groups' share 6.45 %.
+/// Faults per 10^7 build 163,884 -> 62,242, same trees; CPU ms per build, 1 thread,
+/// interleaved with the build before: under load (4.3-5.9, compiles beside) 6,846 /
+/// 5,971 / 7,871 / 6,009 / 6,299 / 5,321 before against 5,060 / 5,132 / 6,167 /
+/// 5,534 / 5,674 / 4,419; but near quiet (load 1.2-2.7, wall close to CPU) wall ms
+/// 4,319 / 4,191 / 5,482 / 4,573 / 4,285 before against 4,663 / 4,260 / 4,474 /
+/// 4,688 / 4,246 (medians 4,319 and 4,474): the recycled pages are not in cache, so
+/// each group's store reads its line from memory where a fresh page was zeroed just
+/// before; only a loaded machine's page allocation made the faults dear. Not taken.
 fn zeroed_refs(n: usize) -> Vec<PrimRef> {
     if n == 0 {
         return Vec::new();
