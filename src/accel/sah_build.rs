@@ -462,7 +462,77 @@ pub(super) fn build_tree<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
 ) -> (Option<BuildNode>, Vec<u32>) {
+    let (tree, ids, _) = build_tree_sampling(prims, opts, SAMPLED_BINNING);
+    (tree, ids)
+}
+
+/// [`build_tree`], also handing back the memory of its reference array (dead once
+/// the build returns) for the caller's next array: see [`SpareRefs`].
+pub(super) fn build_tree_keeping_refs<P: Primitives>(
+    prims: &P,
+    opts: Bvh2BuildOptions,
+) -> (Option<BuildNode>, Vec<u32>, SpareRefs) {
     build_tree_sampling(prims, opts, SAMPLED_BINNING)
+}
+
+/// The memory of a finished build's reference array, whose contents are dead: an
+/// array made after the build ([`SpareRefs::into_vec`]) can take over its pages
+/// instead of asking the kernel for fresh ones.
+///
+/// Why (issue 12, helper big20, 2026-11-28, perf of `build_time 10000000 3 1`, 1
+/// thread): the kernel zeroing fresh pages was 26 % of the samples and page faults
+/// 34 % (every one of them: `clear_page_erms`, `folio_zero_user`); per build 163,884
+/// faults, of which the collapse writing the triangle groups (420 MB at 10^7) was a
+/// quarter (6.45 % of the samples). glibc maps blocks of 32 MiB and more afresh and
+/// unmaps them when freed, so at 10^7 the groups' pages are new in every build, just
+/// after the 320 MB of references are unmapped. Taken over: faults per 10^7 build
+/// 163,884 -> 62,242, same trees. `build_time 10000000 3 1` interleaved with the build
+/// before, wall ms medians: quiet (load 0.7-1.0) 4,471 / 4,141 / 4,090 before against
+/// 3,941 / 4,018 / 3,992 (2.49-2.54 Mtri/s); load 1.2-2.7 4,319 / 4,191 / 5,482 /
+/// 4,573 / 4,285 against 4,663 / 4,260 / 4,474 / 4,688 / 4,246 (the recycled pages
+/// are not in cache, so each group's store reads its line where a fresh page was
+/// zeroed just before); CPU ms under load 4.3-5.9: 6,846 / 5,971 / 7,871 / 6,009 /
+/// 6,299 / 5,321 against 5,060 / 5,132 / 6,167 / 5,534 / 5,674 / 4,419.
+pub(super) struct SpareRefs(Vec<PrimRef>);
+
+/// Spare arrays smaller than this are not taken over: glibc's largest mmap threshold
+/// (`DEFAULT_MMAP_THRESHOLD_MAX`, 32 MiB on 64-bit), below which blocks come from the
+/// heap, where the next array gets the freed pages back anyway and growing a block in
+/// place may copy it.
+const RECYCLE_MIN_BYTES: usize = 32 << 20;
+
+impl SpareRefs {
+    /// An empty vector with room for `capacity` values of `T`: in the spare array's
+    /// memory, resized to fit (`realloc`, which for a mapped block moves or extends
+    /// its mapping without copying the pages), when the spare array is large; else a
+    /// fresh allocation.
+    pub(super) fn into_vec<T>(self, capacity: usize) -> Vec<T> {
+        const {
+            assert!(std::mem::align_of::<T>() == std::mem::align_of::<PrimRef>());
+        }
+        let new = std::alloc::Layout::array::<T>(capacity).expect("array size");
+        let old = self.0.capacity() * std::mem::size_of::<PrimRef>();
+        if old < RECYCLE_MIN_BYTES || new.size() == 0 {
+            return Vec::with_capacity(capacity);
+        }
+        let mut refs = std::mem::ManuallyDrop::new(self.0);
+        let layout = std::alloc::Layout::array::<PrimRef>(refs.capacity())
+            .expect("the reference array's own layout");
+        // SAFETY: `refs` owns a block of the global allocator with `layout` (a
+        // non-empty Vec's buffer, never freed: `ManuallyDrop`); the new size is
+        // non-zero and, being a valid `Layout`'s, at most `isize::MAX` when rounded
+        // up to the alignment, which it keeps.
+        let ptr =
+            unsafe { std::alloc::realloc(refs.as_mut_ptr().cast::<u8>(), layout, new.size()) };
+        if ptr.is_null() {
+            std::alloc::handle_alloc_error(new);
+        }
+        // SAFETY: `ptr` is a block of the global allocator of exactly `new.size()` =
+        // `capacity * size_of::<T>()` bytes, aligned as `PrimRef`, which is `T`'s
+        // alignment (asserted above); the vector starts empty, so no value of `T` is
+        // read from the old contents.
+        unsafe { Vec::from_raw_parts(ptr.cast::<T>(), 0, capacity) }
+    }
 }
 
 /// [`build_tree`] with nodes of at least `sample_from` references binned from a
@@ -471,7 +541,7 @@ fn build_tree_sampling<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
     sample_from: usize,
-) -> (Option<BuildNode>, Vec<u32>) {
+) -> (Option<BuildNode>, Vec<u32>, SpareRefs) {
     assert!(
         opts.bins >= 2 && opts.bins <= MAX_BINS,
         "bins must be in 2..={MAX_BINS}"
@@ -493,7 +563,7 @@ fn build_tree_sampling<P: Primitives>(
         });
     let mut ids = vec![0u32; n];
     if n == 0 {
-        return (None, ids);
+        return (None, ids, SpareRefs(refs));
     }
     // Written in full by the root's partition before anything reads it: no copy.
     let mut scratch = zeroed_refs(n);
@@ -505,7 +575,7 @@ fn build_tree_sampling<P: Primitives>(
     };
     let nb = node_bounds(&refs);
     let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb, true);
-    (Some(root), ids)
+    (Some(root), ids, SpareRefs(refs))
 }
 
 /// `n` zeroed references, allocated without being written (`calloc`: fresh pages from
@@ -544,18 +614,33 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
 /// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
 /// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
+///
+/// An array that may be recycled (at least [`RECYCLE_MIN_BYTES`]: a mapped block of
+/// its own) is advised over every 4 KiB page it touches, not only its whole 2 MiB
+/// pages (only those get huge pages either way): advice on part of a mapping splits
+/// it in several, and `mremap` refuses a range across mappings (`EFAULT`), so glibc's
+/// `realloc` of the array ([`SpareRefs::into_vec`]) then copied all of it into a fresh
+/// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages). Smaller
+/// arrays, heap blocks that may share their first and last page, keep the advice to
+/// their whole huge pages.
 fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;
+        const PAGE: usize = 4 << 10;
         if len < 2 * HUGE {
             return;
         }
-        let start = (ptr as usize).next_multiple_of(HUGE);
-        let end = (ptr as usize + len) / HUGE * HUGE;
+        let (first, last) = (ptr as usize, ptr as usize + len);
+        let (start, end) = if len >= RECYCLE_MIN_BYTES {
+            (first / PAGE * PAGE, last.next_multiple_of(PAGE))
+        } else {
+            (first.next_multiple_of(HUGE), last / HUGE * HUGE)
+        };
         if end > start {
-            // SAFETY: the range lies inside one live allocation; MADV_HUGEPAGE only
-            // changes how its pages are backed, never their contents.
+            // SAFETY: the range is (at most) the pages the live allocation lies in;
+            // MADV_HUGEPAGE only changes how pages are backed, never their contents, so
+            // it leaves anything else on the first and last page as it was.
             unsafe {
                 libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
             }
@@ -1530,8 +1615,8 @@ mod tests {
             block_size: 4,
             ..Bvh2BuildOptions::default()
         };
-        let (full, _) = build_tree_sampling(&tris, opts, usize::MAX);
-        let (sampled, ids) = build_tree_sampling(&tris, opts, SAMPLED_BINNING);
+        let (full, _, _) = build_tree_sampling(&tris, opts, usize::MAX);
+        let (sampled, ids, _) = build_tree_sampling(&tris, opts, SAMPLED_BINNING);
         let (full, sampled) = (full.unwrap(), sampled.unwrap());
         let (a, b) = (tree_sah(&full, 4), tree_sah(&sampled, 4));
         println!("SAH full {a:.4}, sampled {b:.4}");
@@ -1780,6 +1865,32 @@ mod tests {
             let v = zeroed_refs(n);
             assert_eq!(v.len(), n);
             assert!(bits(&v).iter().all(|&b| b == 0), "{n} references");
+        }
+    }
+
+    /// A spare reference array becomes an empty array of exactly the asked room
+    /// (taken over when large: grown past it, shrunk inside it, or with none), and the
+    /// array holds and returns every value written to it, up to its capacity; dropping
+    /// it frees the block with the layout it has (glibc aborts on a wrong size).
+    #[test]
+    fn spare_refs_become_an_array_of_the_asked_room() {
+        #[derive(Clone, Copy, PartialEq, Debug)]
+        #[repr(C, align(16))]
+        struct Group([u32; 40]);
+        let large = RECYCLE_MIN_BYTES / 32 + 5;
+        for n in [0, 1000, large] {
+            for room in [0, 1, 7, n * 32 / 160 + 1, n * 32 / 160 + 50_000] {
+                let mut v = SpareRefs(zeroed_refs(n)).into_vec::<Group>(room);
+                assert!(v.is_empty(), "{n} references, room {room}");
+                if n >= large && room > 0 {
+                    assert_eq!(v.capacity(), room, "{n} references");
+                } else {
+                    assert!(v.capacity() >= room, "{n} references, room {room}");
+                }
+                let value = |i: usize| Group(std::array::from_fn(|k| (i * 40 + k) as u32));
+                v.extend((0..room).map(value));
+                assert!(v.iter().enumerate().all(|(i, g)| *g == value(i)));
+            }
         }
     }
 

@@ -4,7 +4,7 @@
 
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
-use crate::accel::sah_build::BuildNode;
+use crate::accel::sah_build::{BuildNode, SpareRefs};
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use rayon::prelude::*;
@@ -46,21 +46,39 @@ impl<const N: usize> Collapse<'_, N> {
     /// triangles' corners and on the build nodes, the gather one leaf at a time
     /// behind the tree walk.
     pub(super) fn collapse(&mut self, node: &BuildNode, parallel_levels: usize) -> u32 {
+        self.collapse_recycling(node, parallel_levels, None)
+    }
+
+    /// [`Collapse::collapse`]; where the groups array is still unallocated, the
+    /// gather makes it in `spare`'s memory (sized once the node pass has counted the
+    /// groups), not in fresh pages.
+    pub(super) fn collapse_recycling(
+        &mut self,
+        node: &BuildNode,
+        parallel_levels: usize,
+        spare: Option<SpareRefs>,
+    ) -> u32 {
         let mut pending = PendingLeaves {
             leaves: Vec::new(),
             groups: self.groups.len(),
         };
         let root = self.collapse_nodes(node, parallel_levels, &mut pending);
         if let Some(tris) = self.triangles {
-            self.gather(tris, &pending.leaves);
+            self.gather(tris, &pending.leaves, spare);
         }
         root
     }
 
-    /// Fills the groups of `leaves` (in order) from `tris`.
-    fn gather(&mut self, tris: &Triangles, leaves: &[(u32, u32)]) {
+    /// Fills the groups of `leaves` (in order) from `tris`; an unallocated groups
+    /// array is made in `spare`'s memory.
+    fn gather(&mut self, tris: &Triangles, leaves: &[(u32, u32)], spare: Option<SpareRefs>) {
         let ids = self.ids;
         let blocks: usize = leaves.iter().map(|l| (l.1 as usize).div_ceil(4)).sum();
+        if self.groups.capacity() == 0
+            && let Some(spare) = spare
+        {
+            self.groups = spare.into_vec(blocks);
+        }
         self.groups.reserve(blocks);
         // Dead end (build5, 2026-11-24): advising the groups' fresh pages to be huge pages
         // (madvise) halved the page faults of a 10^6 build (17,547 -> 8,349) but not its

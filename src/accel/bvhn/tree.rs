@@ -7,7 +7,7 @@ use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
-use crate::accel::sah_build::build_tree;
+use crate::accel::sah_build::build_tree_keeping_refs;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::TriGroup4;
@@ -112,20 +112,26 @@ where
         let start = Instant::now();
         let n = prims.count();
         let triangles = prims.as_triangles();
-        let (tree, ids) = build_tree(&prims, wide_build_options(triangles.is_some()));
+        let (tree, ids, spare) =
+            build_tree_keeping_refs(&prims, wide_build_options(triangles.is_some()));
         let parallel = rayon::current_num_threads() > 1;
+        // The triangle groups go into the build's dead reference array where it is
+        // large (`SpareRefs`: at 10^7 its 320 MB of pages would otherwise be unmapped
+        // and 420 MB of fresh ones faulted in). The serial collapse sizes the groups
+        // itself once its node pass has counted them (`Collapse::gather`); the parallel
+        // one appends its parts' groups, so they are counted before. The count walks
+        // the whole build tree: 1.3 % of a 1-thread 10^6 build's perf samples (big19),
+        // now skipped there.
+        let (groups, spare) = match (&tree, triangles) {
+            (Some(t), Some(_)) if parallel => (spare.into_vec(t.leaf_blocks(4)), None),
+            (_, Some(_)) => (Vec::new(), Some(spare)),
+            _ => (Vec::new(), None),
+        };
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
             nodes: Vec::with_capacity(n / 2 + 1),
-            // The serial collapse sizes the groups itself once its node pass has counted
-            // them (`Collapse::gather`); the parallel one appends its parts' groups, so
-            // they are counted before. The count walks the whole build tree: 1.3 % of a
-            // 1-thread 10^6 build's perf samples (big19), now skipped there.
-            groups: Vec::with_capacity(match (&tree, triangles) {
-                (Some(t), Some(_)) if parallel => t.leaf_blocks(4),
-                _ => 0,
-            }),
+            groups,
         };
         // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
         // node and group arrays before the collapse writes them, as Embree's allocator
@@ -141,7 +147,7 @@ where
             // One thread gains nothing from the parallel levels and pays for them: each
             // subtree collapses into arrays of its own that are then copied in.
             Some(t) if parallel => c.collapse(t, PARALLEL_COLLAPSE_LEVELS),
-            Some(t) => c.collapse(t, 0),
+            Some(t) => c.collapse_recycling(t, 0, spare),
         };
         let Collapse { nodes, groups, .. } = c;
         // Compressed nodes are quantised from the exact ones (for exact nodes this is
