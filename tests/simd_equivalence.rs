@@ -439,6 +439,15 @@ where
     assert!(only_bad_occ.iter().all(|o| !o));
     bvhn.closest_stream(&[], &mut []);
     bvhn.any_stream(&[], &mut []);
+    // A whole packet of invalid rays (no lane group to trace): every answer `None`, over
+    // answers pre-filled with a hit.
+    let packet: Vec<Ray> = (0..16).map(|k| bad[k % bad.len()]).collect();
+    let mut packet_hits = vec![filler; packet.len()];
+    bvhn.closest_hit_batch(&packet, &mut packet_hits);
+    assert!(packet_hits.iter().all(|h| h.is_none()), "{packet_hits:?}");
+    let mut packet_occ = vec![true; packet.len()];
+    bvhn.any_hit_batch(&packet, &mut packet_occ);
+    assert!(packet_occ.iter().all(|o| !o));
 }
 
 /// Spheres through packets: the lane-parallel sphere test (the SIMD twin of

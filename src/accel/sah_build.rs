@@ -1870,8 +1870,7 @@ mod tests {
 
     /// A spare reference array becomes an empty array of exactly the asked room
     /// (taken over when large: grown past it, shrunk inside it, or with none), and the
-    /// array holds and returns every value written to it, up to its capacity; dropping
-    /// it frees the block with the layout it has (glibc aborts on a wrong size).
+    /// array holds and returns every value written to it, up to its capacity.
     #[test]
     fn spare_refs_become_an_array_of_the_asked_room() {
         #[derive(Clone, Copy, PartialEq, Debug)]

@@ -50,7 +50,8 @@ where
     ) {
         let setup = PacketSetup::<L>::new(rays);
         let out = &mut out[..rays.lane_count()];
-        if !setup.coherent() || self.stack_need >= PACKET_STACK {
+        // No valid lane (no group) also takes this path: every answer `None`.
+        if setup.groups == 0 || !setup.coherent() || self.stack_need >= PACKET_STACK {
             out.fill(None);
             for_each_bit(setup.valid, |i| {
                 let q = lane_query(rays, i);
