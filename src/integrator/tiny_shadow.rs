@@ -625,9 +625,7 @@ impl LaneOccluders {
     /// plane sides of its shared origin, kept across calls): every lane gets the answer
     /// `settle` gives it. Per point whose valid lanes share one origin, the plane cull
     /// from that origin's sides (computed once per origin, as `settle` does per point);
-    /// per key group, the triangle test from the shared origin where the group's lanes
-    /// are one point's and share it (`TinyGroup::from_lanes_at`, the same f32
-    /// differences as `from_lanes`), else from the lanes' origins; the spheres of
+    /// per key group, the triangle test from the lanes' origins; the spheres of
     /// `near_spheres` (the union of the points' bits) once for every valid lane.
     #[inline(always)]
     pub fn settle_segments(
@@ -644,9 +642,6 @@ impl LaneOccluders {
         // its two directions of leaving (computed on first need).
         let mut culled = [0u32; TINY_MAX_PRIMITIVES];
         let mut away: [Option<(u32, u32)>; TINY_MAX_PRIMITIVES] = [None; TINY_MAX_PRIMITIVES];
-        // The points whose valid lanes share an origin: (lanes, origin).
-        let mut shared = [(0u32, Vec3::ZERO); PACKET_WIDTH];
-        let mut n_shared = 0;
         // The origins' lanes unpacked once for the points (`V3::lane` per point stored
         // the three coordinates' lanes each time: ~5 % of `shade_quads_packed`'s perf
         // samples, dof_area 960x720, 1 thread).
@@ -659,8 +654,6 @@ impl LaneOccluders {
             let Some(o) = shared_origin_of(origin, &unpacked, v) else {
                 continue;
             };
-            shared[n_shared & (PACKET_WIDTH - 1)] = (v, o);
-            n_shared += 1;
             if cache.origin != Some(o) {
                 // The sides of the planes tried (a twin takes its plane's lanes below).
                 let (mut above, mut below, mut on) = (0, 0, 0);
@@ -705,10 +698,7 @@ impl LaneOccluders {
                 _ => valid & !culled[i],
             };
         }
-        let shared = &shared[..n_shared.min(PACKET_WIDTH)];
-        let tri = self.triangle_blocks(&keys, live, &lanes, tmax, &reach, |mask| {
-            shared.iter().find(|(v, _)| mask & !v == 0).map(|&(_, o)| o)
-        });
+        let tri = self.triangle_blocks(&keys, live, &lanes, tmax, &reach);
         self.settle_spheres(&lanes, tmax, (live, tri, valid & !tri), near_spheres)
     }
 
@@ -759,13 +749,14 @@ impl LaneOccluders {
                 }
             }
         }
-        let tri = self.triangle_blocks(&keys, live, &lanes, tmax, &reach, |_| shared);
+        let tri = self.triangle_blocks(&keys, live, &lanes, tmax, &reach);
         self.settle_spheres(&lanes, tmax, (live, tri, valid & !tri), near_spheres)
     }
 
     /// The lanes of `live` that a triangle blocks, one shear-key group at a time
-    /// (`keys`), each lane tested only against the triangles in its `reach`; `at`
-    /// gives the origin shared by a group's lanes, where they share one (bit for bit).
+    /// (`keys`), each lane tested only against the triangles in its `reach` (the
+    /// lanes' own origins: the packet triangle test translates the corners by each
+    /// lane's origin in one instruction per coordinate, shared origin or not).
     /// The light's own triangles, beyond the segments' ends, are skipped by
     /// `TinyGroup::beyond` before the full test.
     #[inline(always)]
@@ -776,7 +767,6 @@ impl LaneOccluders {
         lanes: &RayLanes<Packet>,
         tmax: Packet,
         reach: &[u32; TINY_MAX_PRIMITIVES],
-        at: impl Fn(u32) -> Option<Vec3>,
     ) -> u32 {
         let mut tri = 0u32;
         for (key, &bits) in keys.iter().enumerate() {
@@ -784,10 +774,7 @@ impl LaneOccluders {
             if mask == 0 {
                 continue;
             }
-            let g = match at(mask) {
-                Some(o) => TinyGroup::from_lanes_at(key, *lanes, tmax, mask, o),
-                None => TinyGroup::from_lanes(key, *lanes, tmax, mask),
-            };
+            let g = TinyGroup::from_lanes(key, *lanes, tmax, mask);
             let mut t = 0;
             for (corners, &reach) in self.triangles.iter().zip(reach) {
                 let test = mask & reach & !t;

@@ -152,24 +152,6 @@ impl TinyGroup {
         }
     }
 
-    /// [`from_lanes`](Self::from_lanes) for lanes that all start at `origin` (every
-    /// lane of `mask` holds exactly these coordinates), recorded in
-    /// `shear.shared_origin`. The lane tests need no special case for it: the triangle
-    /// test translates the corners by each lane's own origin in one instruction per
-    /// coordinate either way (`triangle_packet`).
-    #[inline(always)]
-    pub fn from_lanes_at(
-        key: usize,
-        lanes: RayLanes<TinyLanes>,
-        tmax: TinyLanes,
-        mask: u32,
-        origin: Vec3,
-    ) -> TinyGroup {
-        let mut g = Self::from_lanes(key, lanes, tmax, mask);
-        g.shear.shared_origin = origin.to_array();
-        g
-    }
-
     /// The scalar query of lane `i` (a valid ray), rebuilt from the lanes, which hold
     /// the ray's fields exactly (`RayQuery::new` reads origin, direction and interval;
     /// the time does not enter the triangle test).
@@ -724,7 +706,7 @@ mod tests {
     /// answer bit for bit (t, u, v, primitive; no hit where the loop finds none), and
     /// for every other lane no hit, `t` the interval end, `u = v = 0` and no primitive:
     /// groups of random rays of one shear
-    /// key (every key), of rays from one shared origin (`from_lanes_at`), and of rays
+    /// key (every key), of rays from one shared origin, and of rays
     /// aimed exactly at the triangles' corners and shared edges (edge functions of zero:
     /// the scalar fallback), against a floor quad, a coincident copy of one of its
     /// triangles (exact ties in `t`), a tilted triangle and nested spheres, with lane
@@ -800,11 +782,7 @@ mod tests {
                     3 => 1 << (case / 6 % 16),
                     _ => (unit() * 65536.0) as u32 & 0xffff | 1,
                 };
-                let g = if shared {
-                    TinyGroup::from_lanes_at(key, lanes, tmax, mask, common)
-                } else {
-                    TinyGroup::from_lanes(key, lanes, tmax, mask)
-                };
+                let g = TinyGroup::from_lanes(key, lanes, tmax, mask);
                 let a = g.closest(&triangles, &spheres);
                 assert_eq!(a.hit & !mask, 0, "case {case} key {key}");
                 let tm = tmax.to_array();
