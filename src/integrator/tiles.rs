@@ -5,7 +5,7 @@
 use super::camera_rays::CameraSampler;
 use super::pixel_filter::TileOut;
 use super::{RenderOptions, RenderOutput};
-use crate::film::{Film, PixelSums, partial};
+use crate::film::{Film, PixelSums, partial, populate_for_writing};
 use crate::scene::Scene;
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
@@ -102,6 +102,12 @@ pub(crate) fn render_tiles<W: Send>(
         .enumerate()
         .with_max_len(1)
         .map(|(ty, band)| {
+            // The band's pages mapped in one call, not one fault per page as its tiles
+            // copy their rows in (`film::populate_for_writing`); counted in `resolve`,
+            // where those faults were.
+            let t = Instant::now();
+            populate_for_writing(band);
+            let populate = ms_since(t);
             let y0 = region.y0 + ty as u32 * TILE;
             let rows = band.len() / row;
             // The band's rows cut at the tile edges, listed tile by tile: tile `tx`
@@ -141,7 +147,9 @@ pub(crate) fn render_tiles<W: Send>(
                     out
                 })
                 .collect();
-            Band::merge(tiles, keep)
+            let mut band = Band::merge(tiles, keep);
+            band.stages.resolve += populate;
+            band
         })
         .collect();
 
