@@ -24,7 +24,9 @@ impl Film {
     /// and huge pages made it 1.7-2.3 ms in half the runs but 46-120 ms in the others
     /// (direct compaction; the `madvise` call itself took up to 10 ms), so the bunny
     /// frame's `resolve` stage went from 30-38 ms to 7-110 ms. `MADV_POPULATE_WRITE`
-    /// (prefault in one call) cost as much as touching (16-28 ms).
+    /// on the whole frame in one call here cost as much as touching (16-28 ms, serial);
+    /// per band of rows, by the thread that renders it, it saves the trap per page
+    /// (`film/prefault.rs`, called from the tile renderer).
     pub fn new(width: u32, height: u32) -> Self {
         Film {
             width,

@@ -6,14 +6,17 @@
 //! 2,304 for a 1024x768 one. On this VM a fault costs 1.3-4.3 us, and the bunny frame's
 //! `resolve` stage (the tile-to-film copy, where those faults land) was 6.8-10.0 ms of
 //! a 66-98 ms render phase. `madvise(MADV_POPULATE_WRITE)` maps a whole band of rows in
-//! one call: the same zeroing, without one trap per page. Measured on this host (a C
-//! loop over fresh 12 MB mappings, one byte written per page against `mmap` with
-//! `MAP_POPULATE`, 6 pairs, load ~4): touching 4.2-13.3 ms, populating 2.7-8.8 ms;
-//! pages freed by the process just before were no cheaper to touch (1.3-2.9 us), so
-//! the cost is the kernel's fault path, not the hypervisor's first touch. Bunny
-//! 1024x1024, 1 thread, 9 interleaved rounds against the build before (load 6-7,
-//! min/median/max ms): `resolve` 10.8/13.1/27.0 -> 5.4/9.9/21.7 and
-//! 7.0/14.2/20.2 -> 5.6/7.0/25.1.
+//! one call: the same page allocation and zeroing, without one trap per page (the
+//! process's minor-fault count is the same: 11,037-11,042 before, 11,011-11,018 after).
+//! Measured on this host with a C loop over fresh 12 MB mappings written band by band
+//! (196,608-byte bands, the bunny's 16 rows), 20 interleaved rounds each, 3 runs at load
+//! ~6, min/median ms: `memset` per band 5.3/10.8, 6.6/15.1, 9.7/14.6; populate then
+//! `memset` per band 3.2/7.4, 3.6/8.9, 3.6/8.8. Pages the process had just freed were no
+//! cheaper to touch (1.3-2.9 us a page), so the cost is the guest kernel's fault path,
+//! not the hypervisor's first touch. Bunny 1024x1024, 1 thread, three sets of 8-9
+//! interleaved rounds against the build before (load 6-7, where whole frames varied
+//! 100-200 ms), `resolve` min/median: 10.8/13.1 -> 5.4/9.9, 7.0/14.2 -> 5.6/7.0, 7.0/13.5
+//! -> 6.5/14.5 ms; the render phase did not move outside that noise.
 //!
 //! Called per band of rows by the thread that renders it, so at 2 threads the bands are
 //! mapped in parallel. The dead end in `Film::new` was one call for the whole frame
