@@ -53,14 +53,31 @@
 //! from the heap's top) and 483/406/397/425/402/426/406 before against 434/421/407/
 //! 390/464/393/429 (medians of the rounds 406 / 421): no win shows, removed. The boxes
 //! come back from the heap every build; the arena's pages did not.
+//!
+//! Issue 12, helper bld21, 2026-11-28 (AVX-512 host, load 5-7, 1 thread): the
+//! partition's side bounds as two 8-lane [`BinBox`]es, the bins' offsets from one vector
+//! conversion ([`bin_offsets`]), the sampled binning's prefetch ([`SAMPLE_AHEAD`]),
+//! the sweep's negated extents, SSE4.1 ceiling and unfilled plane arrays, and the
+//! reference array not zeroed before it is written. Same trees at every size. CPU ms
+//! per build against the build before, interleaved (`build_time N REPS 1`, medians of
+//! each round; min / median / max over the rounds): 10^6, 6 rounds of 3 builds,
+//! 388.7 / 436.1 / 534.4 -> 340.8 / 377.4 / 478.4 (lower in every round; a first run of
+//! 7 rounds 441.7 -> 376.7 median, lower in 6); 10^5, 6 x 7, 33.2 / 33.7 / 35.5 ->
+//! 30.2 / 32.6 / 34.5; 10^7, 3 x 2, 5,786 / 5,958 / 6,812 -> 4,994 / 5,596 / 5,836.
+//! Not split by change (no time for single-change builds): in perf the sampled
+//! binning went from 4.7 to 2.3 % of the samples; the other shares moved within the
+//! noise of single profiles.
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
 use crate::geometry::Aabb;
 use crate::simd::bin_box::BinBox;
+use crate::simd::bin_index;
 use crate::simd::box_areas;
-use glam::{BVec3A, BVec4A, Vec3A, Vec4};
+use crate::simd::prefetch::prefetch;
+use glam::{BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// Past this depth the builder splits at the object median, so the depth of any tree
 /// stays below `MEDIAN_DEPTH + 32` and a fixed traversal stack suffices.
@@ -308,14 +325,24 @@ impl Bins {
         self.counts[..n].fill([0; 4]);
     }
 
+    /// Adds box `b` to the bins at byte offsets `o` ([`bin_offsets`]: 16 per bin, one
+    /// per axis): each axis's count and box. By offset, not index: the offsets come
+    /// out of one vector conversion, and the rows' addresses need no further scaling
+    /// (a box row is 32 bytes, an index register scaled by 2).
     #[inline(always)]
-    fn add(&mut self, k: [usize; 3], b: &BinBox) {
-        for (axis, &bin) in k.iter().enumerate() {
-            // `bins_of` keeps `bin` below `bins <= MAX_BINS`; the mask only lets the
-            // compiler drop the bounds checks (a compare and branch per axis).
-            let bin = bin & (MAX_BINS - 1);
-            self.counts[bin][axis] += 1;
-            self.boxes[axis][bin].grow(b);
+    fn add_at(&mut self, o: [u32; 3], b: &BinBox) {
+        let counts = self.counts.as_mut_ptr().cast::<u8>();
+        for (axis, &o) in o.iter().enumerate() {
+            let o = o as usize;
+            // SAFETY: `o` is `16 * bin` with `bin < MAX_BINS` (`bin_offsets` masks
+            // it): `counts[bin][axis]` is the u32 at byte `o + 4 * axis` of `counts`
+            // (rows of 16 bytes) and `boxes[axis][bin]` the box at byte `2 * o` of its
+            // row (32 bytes each, so aligned as `BinBox::grow` needs).
+            unsafe {
+                *counts.add(o + 4 * axis).cast::<u32>() += 1;
+                let row = self.boxes[axis].as_mut_ptr().cast::<u8>();
+                (*row.add(2 * o).cast::<BinBox>()).grow(b);
+            }
         }
     }
 
@@ -323,8 +350,8 @@ impl Bins {
     #[inline(always)]
     fn add_all(&mut self, refs: &[PrimRef], lo: Vec3A, scale: Vec3A, bins_n: usize) {
         for r in refs {
-            let k = bins_of(r.centroid(), lo, scale, bins_n);
-            self.add(k, &r.bin_box());
+            let o = bin_offsets(r.centroid(), lo, scale, bins_n);
+            self.add_at(o, &r.bin_box());
         }
     }
 
@@ -344,10 +371,10 @@ impl Bins {
         let mut pairs = refs.chunks_exact(2);
         for p in &mut pairs {
             let (a, b) = (&p[0], &p[1]);
-            let ka = bins_of(a.centroid(), lo, scale, bins_n);
-            let kb = bins_of(b.centroid(), lo, scale, bins_n);
-            self.add(ka, &a.bin_box());
-            other.add(kb, &b.bin_box());
+            let ka = bin_offsets(a.centroid(), lo, scale, bins_n);
+            let kb = bin_offsets(b.centroid(), lo, scale, bins_n);
+            self.add_at(ka, &a.bin_box());
+            other.add_at(kb, &b.bin_box());
         }
         self.add_all(pairs.remainder(), lo, scale, bins_n);
         self.merge_first(other, bins_n);
@@ -365,11 +392,18 @@ impl Bins {
         scale: Vec3A,
         bins_n: usize,
     ) {
-        for block in refs.chunks(SAMPLE_BLOCK) {
+        for (i, block) in refs.chunks(SAMPLE_BLOCK).enumerate() {
+            // The sample's pair [`SAMPLE_AHEAD`] blocks on (one or two lines).
+            let ahead = (i + SAMPLE_AHEAD) * SAMPLE_BLOCK;
+            if let Some(pair) = refs.get(ahead..(ahead + 2).min(refs.len())) {
+                for r in pair {
+                    prefetch(r, 1);
+                }
+            }
             let a = &block[0];
-            self.add(bins_of(a.centroid(), lo, scale, bins_n), &a.bin_box());
+            self.add_at(bin_offsets(a.centroid(), lo, scale, bins_n), &a.bin_box());
             if let Some(b) = block.get(1) {
-                other.add(bins_of(b.centroid(), lo, scale, bins_n), &b.bin_box());
+                other.add_at(bin_offsets(b.centroid(), lo, scale, bins_n), &b.bin_box());
             }
         }
         self.merge_first(other, bins_n);
@@ -399,6 +433,12 @@ const PAIRED_BINNING: usize = 64;
 const SAMPLED_BINNING: usize = PARALLEL_NODE;
 /// The sample: the first two references (one 64-byte line) of every block of this many.
 const SAMPLE_BLOCK: usize = 16;
+/// Blocks ahead of the one being binned whose sampled pair [`Bins::add_sampled`]
+/// prefetches. Its loads are one or two lines every 512 bytes, from memory in the top
+/// levels (perf, 1 thread, `build_time 1000000 5 1`: the sampled binning was 4.7 % of
+/// the samples, about four levels' worth of the in-cache binning for an eighth of the
+/// references).
+const SAMPLE_AHEAD: usize = 16;
 /// The references each sampled one stands for in the sweep's counts.
 const SAMPLE_WEIGHT: u32 = (SAMPLE_BLOCK / 2) as u32;
 /// Chunk of a sampled node binned by one task (a multiple of [`SAMPLE_BLOCK`], so the
@@ -424,7 +464,7 @@ struct Split {
 
 /// The chosen split with its children's boxes, read off the bins: a primitive goes
 /// left exactly when its bin on the split axis is below the split bin (the same
-/// [`bins_of`] decides both), so the union of the left bins' boxes is the union of the
+/// [`bin_coords`] decides both), so the union of the left bins' boxes is the union of the
 /// left primitives' boxes, bit for bit (min and max are exact). The partition then
 /// only gathers the children's centroid bounds.
 #[derive(Clone, Copy)]
@@ -551,16 +591,24 @@ fn build_tree_sampling<P: Primitives>(
         u32::try_from(n).is_ok(),
         "at most 2^32 - 1 primitives per structure"
     );
-    let mut refs = zeroed_refs(n);
-    refs.par_chunks_mut(PARALLEL_THRESHOLD)
+    // Written in full here, so not zeroed first: `calloc` clears a block recycled from
+    // the heap with `memset` (the 32 MB arrays of a 10^6 build are; `memset` was 1.5 %
+    // of a 1-thread build's perf samples, `build_time 1000000 5 1`, for both arrays).
+    let mut refs = Vec::<PrimRef>::with_capacity(n);
+    advise_huge_pages(refs.as_mut_ptr().cast(), n * std::mem::size_of::<PrimRef>());
+    refs.spare_capacity_mut()[..n]
+        .par_chunks_mut(PARALLEL_THRESHOLD)
         .enumerate()
         .for_each(|(c, chunk)| {
             let first = c * PARALLEL_THRESHOLD;
             for (k, r) in chunk.iter_mut().enumerate() {
                 let i = first + k;
-                *r = PrimRef::new(prims.bounds(i), i as u32);
+                r.write(PrimRef::new(prims.bounds(i), i as u32));
             }
         });
+    // SAFETY: the capacity is `n` (`with_capacity`'s guarantee) and the loop above
+    // wrote each of the first `n` slots.
+    unsafe { refs.set_len(n) };
     let mut ids = vec![0u32; n];
     if n == 0 {
         return (None, ids, SpareRefs(refs));
@@ -666,24 +714,37 @@ fn node_bounds(refs: &[PrimRef]) -> NodeBounds {
     }
 }
 
-/// Bin indices of a centroid on all three axes at once.
+/// The bin coordinates of a centroid on all three axes, clamped to `[0, bins - 1]`:
+/// the bins are their truncations ([`bin_offsets`]).
 #[inline(always)]
-fn bins_of(c: Vec3A, lo: Vec3A, scale: Vec3A, bins: usize) -> [usize; 3] {
+fn bin_coords(c: Vec3A, lo: Vec3A, scale: Vec3A, bins: usize) -> Vec3A {
     // Clamped on both sides, and min/max return the non-NaN operand, so every lane is
     // finite and in [0, bins - 1] even for a NaN centroid.
-    let k = ((c - lo) * scale)
+    ((c - lo) * scale)
         .max(Vec3A::ZERO)
-        .min(Vec3A::splat((bins - 1) as f32));
-    // SAFETY: `to_int_unchecked` needs a finite value that fits the target type, which
-    // the clamp above guarantees. The checked `as` cast saturates and tests for NaN on
-    // every call, and cost 15 % of the build's instructions here.
-    unsafe {
-        [
-            k.x.to_int_unchecked::<u32>() as usize,
-            k.y.to_int_unchecked::<u32>() as usize,
-            k.z.to_int_unchecked::<u32>() as usize,
-        ]
-    }
+        .min(Vec3A::splat((bins - 1) as f32))
+}
+
+/// The bins of a centroid on all three axes as byte offsets, `16 * bin` (for
+/// [`Bins::add_at`]), masked below [`MAX_BINS`] (the clamp already keeps them below
+/// `bins <= MAX_BINS`; the mask makes the bins' unchecked addressing safe whatever the
+/// input).
+///
+/// Measured before (perf, 1 thread, `build_time 1000000 5 1`): the binning loops
+/// were 17 % of a build's samples while each axis's bin was converted to an integer
+/// on its own (`vcvttss2usi` and a shuffle), masked and scaled twice (for the counts'
+/// row and the box's).
+#[inline(always)]
+fn bin_offsets(c: Vec3A, lo: Vec3A, scale: Vec3A, bins: usize) -> [u32; 3] {
+    bin_index::offsets16(bin_coords(c, lo, scale, bins), MAX_BINS as u32 - 1)
+}
+
+/// Bin indices of a centroid on all three axes at once (the tests' reference for
+/// [`bin_offsets`]).
+#[cfg(test)]
+fn bins_of(c: Vec3A, lo: Vec3A, scale: Vec3A, bins: usize) -> [usize; 3] {
+    let k = bin_coords(c, lo, scale, bins);
+    [k.x as usize, k.y as usize, k.z as usize]
 }
 
 fn bin_scale(cb: &BBox, bins: usize) -> Vec3A {
@@ -913,16 +974,18 @@ impl Builder {
         let inv_area = 1.0 / nb.bounds.area().max(f32::MIN_POSITIVE);
         let inv_block = Vec4::splat(1.0 / (1u32 << shift) as f32);
         let axis_ok = Vec4::new(scale.x, scale.y, scale.z, 0.0).cmpne(Vec4::ZERO);
-        let mut right_term = [Vec4::ZERO; MAX_BINS];
-        let mut right_count = [Vec4::ZERO; MAX_BINS];
+        // Planes 1..bins_n: written by the first loop, read by the second. Not
+        // zero-filled first (1 KB of stores per node, most nodes using a few bins).
+        let mut right_term = [MaybeUninit::<Vec4>::uninit(); MAX_BINS];
+        let mut right_count = [MaybeUninit::<Vec4>::uninit(); MAX_BINS];
         let (mut acc, mut cnt) = ([BinBox::EMPTY; 3], Vec4::ZERO);
         for k in (1..bins_n).rev() {
             for (a, b) in acc.iter_mut().enumerate() {
                 b.grow(&bins.boxes[a][k]);
             }
             cnt += bins.counts_f32(k);
-            right_term[k] = areas3(&acc) * (cnt * inv_block).ceil();
-            right_count[k] = cnt;
+            right_term[k].write(areas3(&acc) * box_areas::ceil(cnt * inv_block));
+            right_count[k].write(cnt);
         }
         let (tc, ic) = (
             Vec4::splat(self.opts.traversal_cost),
@@ -936,8 +999,12 @@ impl Builder {
                 b.grow(&bins.boxes[a][k - 1]);
             }
             cnt += bins.counts_f32(k - 1);
-            let valid = axis_ok & cnt.cmpne(Vec4::ZERO) & right_count[k].cmpne(Vec4::ZERO);
-            let cost = tc + ic * (areas3(&acc) * (cnt * inv_block).ceil() + right_term[k]) * inv;
+            // SAFETY: the first loop wrote planes 1..bins_n, and 1 <= k < bins_n.
+            let (right_count, right_term) =
+                unsafe { (right_count[k].assume_init(), right_term[k].assume_init()) };
+            let valid = axis_ok & cnt.cmpne(Vec4::ZERO) & right_count.cmpne(Vec4::ZERO);
+            let left_term = areas3(&acc) * box_areas::ceil(cnt * inv_block);
+            let cost = tc + ic * (left_term + right_term) * inv;
             let take = valid & (!found | cost.cmplt(best));
             best = Vec4::select(take, cost, best);
             best_k = Vec4::select(take, Vec4::splat(k as f32), best_k);
@@ -1014,21 +1081,33 @@ impl Builder {
 const LANE_SWEEP_MAX: usize = 1 << 24;
 
 /// The areas of three bin boxes in the first three lanes, each as [`BBox::area`]
-/// computes it (same operations in the same order: [`BinBox::extent`], then
-/// [`box_areas::areas3`]).
+/// computes it, bit for bit: [`box_areas::areas3`] of the negated extents
+/// ([`BinBox::neg_extent`], two operations where [`BinBox::extent`] takes three), whose
+/// pairwise products are those of the extents (`(-x) * (-y) = x * y` exactly).
 ///
 /// Measured (perf, 1 thread, 10^6 triangles): the lane sweep was 14 % of a build
 /// while it grew plain boxes read back from the bins (a negation each) and gathered
-/// the extents and the counts into lanes one scalar at a time.
+/// the extents and the counts into lanes one scalar at a time; 11.5 % before the
+/// negated extents (`build_time 1000000 5 1`, 2026-11-28).
 #[inline(always)]
 fn areas3(b: &[BinBox; 3]) -> Vec4 {
-    box_areas::areas3(b[0].extent(), b[1].extent(), b[2].extent())
+    box_areas::areas3(b[0].neg_extent(), b[1].neg_extent(), b[2].neg_extent())
 }
 
 /// Split `split` with its two sides' boxes, the unions of its bins on either side.
 fn chosen(bins: &Bins, split: Split) -> Chosen {
+    // Grown as bin boxes and read back once: the same corners as a fold of the bins'
+    // plain boxes (`BinBox::grow` is `min`/`max` bit for bit), one 8-lane minimum per
+    // bin where the fold negated each bin's maximum back first.
     let side = |r: std::ops::Range<usize>| {
-        r.fold(BBox::EMPTY, |a, k| a.union(&bins.bounds(split.axis, k)))
+        let mut b = BinBox::EMPTY;
+        for k in r {
+            b.grow(&bins.boxes[split.axis][k]);
+        }
+        BBox {
+            min: b.min(),
+            max: b.max(),
+        }
     };
     Chosen {
         split,
@@ -1038,10 +1117,10 @@ fn chosen(bins: &Bins, split: Split) -> Chosen {
 }
 
 /// The split plane of `s` on its axis, as one partition loop tests it: the centroid's
-/// bin coordinate `(c - lo) * scale`, clamped to `[0, bins - 1]` as [`bins_of`]
+/// bin coordinate `(c - lo) * scale`, clamped to `[0, bins - 1]` as [`bin_coords`]
 /// clamps it (same operations, so the same value), compared with the split bin. For a
 /// whole number `bin` and `k >= 0`, `k < bin` exactly when `trunc(k) < bin`, so the
-/// float compare gives [`bins_of`]'s answer without the conversion to an integer.
+/// float compare gives the binning's answer without the conversion to an integer.
 #[derive(Clone, Copy)]
 struct Plane {
     lo: f32,
@@ -1072,7 +1151,7 @@ impl Plane {
 /// memory: indexing by a run-time axis stored the centroid to the stack and read one
 /// lane back on every reference).
 #[inline(always)]
-fn lane<const AXIS: usize>(c: Vec3A) -> f32 {
+fn lane4<const AXIS: usize>(c: Vec4) -> f32 {
     match AXIS {
         0 => c.x,
         1 => c.y,
@@ -1089,49 +1168,41 @@ fn goes_left(r: &PrimRef, lo: Vec3A, scale: Vec3A, s: Split) -> bool {
 
 /// Centroid bounds of both sides of a plane, grown through a lane mask per reference
 /// (no branch): the one accumulation [`partition_kernel`] and [`count_on_axis`] share.
+/// Each side is a [`BinBox`] (minimum and negated maximum in eight lanes), grown by the
+/// centroid on the side it goes to ([`BinBox::grow_either`]).
+///
+/// Measured before (perf, 1 thread, 10^6 triangles, `build_time 1000000 5 1`): the
+/// partition was 26 % of a build's samples while the sides' bounds took four 4-lane
+/// selects and four minimums or maximums per reference.
 struct SideBounds {
-    lmin: Vec3A,
-    lmax: Vec3A,
-    rmin: Vec3A,
-    rmax: Vec3A,
+    left: BinBox,
+    right: BinBox,
 }
 
 impl SideBounds {
     #[inline(always)]
     fn new() -> Self {
-        let inf = Vec3A::splat(f32::INFINITY);
         SideBounds {
-            lmin: inf,
-            lmax: -inf,
-            rmin: inf,
-            rmax: -inf,
+            left: BinBox::EMPTY,
+            right: BinBox::EMPTY,
         }
     }
 
-    /// Adds centroid `c` to the left side where `left` is set (all lanes alike), else
-    /// to the right.
+    /// Adds centroid `c` (lane 3 zero, as [`PrimRef::centroid4`]) to the left side
+    /// where `k < bin`, else to the right.
     #[inline(always)]
-    fn add(&mut self, left: BVec3A, c: Vec3A) {
-        let inf = Vec3A::splat(f32::INFINITY);
-        self.lmin = self.lmin.min(Vec3A::select(left, c, inf));
-        self.lmax = self.lmax.max(Vec3A::select(left, c, -inf));
-        self.rmin = self.rmin.min(Vec3A::select(left, inf, c));
-        self.rmax = self.rmax.max(Vec3A::select(left, -inf, c));
+    fn add(&mut self, k: f32, bin: f32, c: Vec4) {
+        BinBox::grow_either(&mut self.left, &mut self.right, BinBox::new(c, c), k, bin);
     }
 
     /// The left and right centroid boxes.
     #[inline(always)]
     fn boxes(self) -> (BBox, BBox) {
-        (
-            BBox {
-                min: self.lmin,
-                max: self.lmax,
-            },
-            BBox {
-                min: self.rmin,
-                max: self.rmax,
-            },
-        )
+        let b = |s: BinBox| BBox {
+            min: s.min(),
+            max: s.max(),
+        };
+        (b(self.left), b(self.right))
     }
 }
 
@@ -1156,10 +1227,9 @@ unsafe fn partition_kernel<const AXIS: usize>(
 ) -> (usize, BBox, BBox) {
     let mut sides = SideBounds::new();
     let (mut nl, mut nr) = (0usize, 0usize);
-    let bin = Vec3A::splat(p.bin);
     for r in src {
-        let c = r.centroid();
-        let k = p.coord(lane::<AXIS>(c));
+        let c = r.centroid4();
+        let k = p.coord(lane4::<AXIS>(c));
         let is_left = k < p.bin;
         // SAFETY: the caller's contract: fewer than `src.len()` references are placed,
         // so `nl` and `nr + 1` stay within the room on each side.
@@ -1171,7 +1241,7 @@ unsafe fn partition_kernel<const AXIS: usize>(
         unsafe { at.write(*r) };
         nl += usize::from(is_left);
         nr += usize::from(!is_left);
-        sides.add(Vec3A::splat(k).cmplt(bin), c);
+        sides.add(k, p.bin, c);
     }
     let (l, r) = sides.boxes();
     (nl, l, r)
@@ -1203,12 +1273,11 @@ unsafe fn partition_on_axis(
 fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, BBox) {
     let mut sides = SideBounds::new();
     let mut nl = 0usize;
-    let bin = Vec3A::splat(p.bin);
     for r in src {
-        let c = r.centroid();
-        let k = p.coord(lane::<AXIS>(c));
+        let c = r.centroid4();
+        let k = p.coord(lane4::<AXIS>(c));
         nl += usize::from(k < p.bin);
-        sides.add(Vec3A::splat(k).cmplt(bin), c);
+        sides.add(k, p.bin, c);
     }
     let (l, r) = sides.boxes();
     (nl, l, r)
@@ -1718,6 +1787,33 @@ mod tests {
         assert!(compared > 300, "{compared} splits compared");
     }
 
+    /// The bins' byte offsets are 16 times the bins (`bins_of`, plain `as` casts of the
+    /// clamped coordinates) for centroids inside, on and outside the node's grid, NaN
+    /// and infinite ones included, and for every bin count.
+    #[test]
+    fn bin_offsets_are_sixteen_times_the_bins() {
+        let src = refs_3d(700);
+        let nb = node_bounds(&src);
+        let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, 0.0];
+        let mut cents: Vec<Vec3A> = src.iter().map(PrimRef::centroid).collect();
+        cents.extend(odd.iter().map(|&v| Vec3A::new(v, 1.0, -v)));
+        cents.push(nb.centroids.min);
+        cents.push(nb.centroids.max);
+        for bins_n in 2..=MAX_BINS {
+            let scale = bin_scale(&nb.centroids, bins_n);
+            for &c in &cents {
+                let k = bins_of(c, nb.centroids.min, scale, bins_n);
+                assert!(k.iter().all(|&k| k < bins_n), "{c:?}: {k:?}");
+                let want = k.map(|k| 16 * k as u32);
+                assert_eq!(
+                    bin_offsets(c, nb.centroids.min, scale, bins_n),
+                    want,
+                    "{c:?}"
+                );
+            }
+        }
+    }
+
     /// The bins (kept as [`BinBox`]es) against a plain reference: per axis and bin,
     /// the count and the min/max fold of the boxes of the references [`bins_of`] puts
     /// there, bit for bit, serial and paired, for several bin counts.
@@ -1854,6 +1950,63 @@ mod tests {
             for p in &pools {
                 let bvh = p.install(|| crate::accel::Bvh8::build(tris.clone()));
                 bvh.validate().expect("a valid BVH8");
+            }
+        }
+    }
+
+    /// Degenerate input builds without a panic and every primitive lands in exactly
+    /// one leaf: NaN and infinite corners, zero-area triangles, and large sets whose
+    /// centroids are all equal (they go through the sampled and parallel levels), for
+    /// the BVH2's and the BVH8's options.
+    #[test]
+    fn degenerate_triangles_build_and_keep_every_primitive() {
+        use glam::Vec3;
+        let tri = |a: Vec3| [a, a + Vec3::X, a + Vec3::Y];
+        let mut mixed: Vec<[Vec3; 3]> = (0..50_000)
+            .map(|i| tri(Vec3::new((i % 300) as f32, (i / 300) as f32, 0.0)))
+            .collect();
+        for (i, t) in mixed.iter_mut().enumerate().step_by(7) {
+            t[i % 3] = match i % 4 {
+                0 => Vec3::NAN,
+                1 => Vec3::splat(f32::INFINITY),
+                2 => Vec3::new(f32::NEG_INFINITY, 0.0, f32::NAN),
+                _ => t[(i + 1) % 3], // zero area
+            };
+        }
+        let same = vec![tri(Vec3::ONE); 40_000];
+        let flat = vec![[Vec3::ZERO; 3]; 5];
+        for corners in [&mixed, &same, &flat] {
+            let tris = crate::accel::Triangles::from_corners(corners);
+            let wide = Bvh2BuildOptions {
+                max_leaf: 4,
+                block_size: 4,
+                ..Bvh2BuildOptions::default()
+            };
+            for opts in [Bvh2BuildOptions::default(), wide] {
+                let (tree, ids) = build_tree(&tris, opts);
+                let mut seen = vec![false; corners.len()];
+                for &id in &ids {
+                    assert!(
+                        !std::mem::replace(&mut seen[id as usize], true),
+                        "{id} twice"
+                    );
+                }
+                assert!(seen.iter().all(|&s| s), "every primitive in a leaf");
+                let mut stack = vec![tree.as_ref().expect("a tree")];
+                let mut covered = 0;
+                while let Some(node) = stack.pop() {
+                    match node {
+                        BuildNode::Leaf { start, count, .. } => {
+                            assert_eq!(*start, covered, "leaves in order");
+                            covered += count;
+                        }
+                        BuildNode::Interior { children, .. } => {
+                            stack.push(&children[1]);
+                            stack.push(&children[0]);
+                        }
+                    }
+                }
+                assert_eq!(covered, corners.len());
             }
         }
     }

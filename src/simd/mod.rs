@@ -11,6 +11,7 @@
 
 pub mod aperture;
 pub mod bin_box;
+pub mod bin_index;
 pub mod box_areas;
 pub mod camera;
 pub mod compact;
