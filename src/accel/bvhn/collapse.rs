@@ -2,6 +2,7 @@
 //! first: Wald et al. 2008, "Getting Rid of Packets"), with triangle leaves packed
 //! into groups of four.
 
+use super::groups::TriGroups;
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
 use crate::accel::sah_build::{BuildNode, SpareRefs};
@@ -17,7 +18,7 @@ pub(super) struct Collapse<'a, const N: usize> {
     pub(super) ids: &'a [u32],
     pub(super) triangles: Option<&'a Triangles>,
     pub(super) nodes: Vec<BvhNode<N>>,
-    pub(super) groups: Vec<TriGroup4>,
+    pub(super) groups: TriGroups,
 }
 
 /// Triangle leaves met by the node pass of a collapse, in the order their groups are
@@ -74,10 +75,10 @@ impl<const N: usize> Collapse<'_, N> {
     fn gather(&mut self, tris: &Triangles, leaves: &[(u32, u32)], spare: Option<SpareRefs>) {
         let ids = self.ids;
         let blocks: usize = leaves.iter().map(|l| (l.1 as usize).div_ceil(4)).sum();
-        if self.groups.capacity() == 0
+        if self.groups.is_unallocated()
             && let Some(spare) = spare
         {
-            self.groups = spare.into_vec(blocks);
+            self.groups = TriGroups::in_spare(spare, blocks);
         }
         self.groups.reserve(blocks);
         // Dead end (build5, 2026-11-24): advising the groups' fresh pages to be huge pages
@@ -110,7 +111,7 @@ impl<const N: usize> Collapse<'_, N> {
                     let k = id as usize;
                     g.set(lane, id, [tris.v0[k], tris.v1[k], tris.v2[k]]);
                 }
-                self.groups.push(g);
+                self.groups.push(&g);
             }
         }
     }
@@ -143,7 +144,7 @@ impl<const N: usize> Collapse<'_, N> {
                         ids,
                         triangles,
                         nodes: Vec::new(),
-                        groups: Vec::new(),
+                        groups: TriGroups::new(),
                     };
                     let r = part.collapse(k, parallel_levels - 1);
                     (part, r)
@@ -199,7 +200,7 @@ impl<const N: usize> Collapse<'_, N> {
             node.children = node.children.map(relocate);
             node
         }));
-        self.groups.extend(part.groups);
+        self.groups.append(&part.groups);
         relocate(root)
     }
 
@@ -371,7 +372,7 @@ mod tests {
             ids: &ids,
             triangles: Some(tris),
             nodes: Vec::new(),
-            groups: Vec::new(),
+            groups: TriGroups::new(),
         };
         let root = c.collapse(&tree, levels);
         let (mut nodes, mut groups) = (Vec::new(), Vec::new());
