@@ -2,7 +2,6 @@
 //! first: Wald et al. 2008, "Getting Rid of Packets"), with triangle leaves packed
 //! into groups of four.
 
-use super::groups::TriGroups;
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
 use crate::accel::sah_build::{BuildNode, SpareRefs};
@@ -18,7 +17,7 @@ pub(super) struct Collapse<'a, const N: usize> {
     pub(super) ids: &'a [u32],
     pub(super) triangles: Option<&'a Triangles>,
     pub(super) nodes: Vec<BvhNode<N>>,
-    pub(super) groups: TriGroups,
+    pub(super) groups: Vec<TriGroup4>,
 }
 
 /// Triangle leaves met by the node pass of a collapse, in the order their groups are
@@ -75,12 +74,28 @@ impl<const N: usize> Collapse<'_, N> {
     fn gather(&mut self, tris: &Triangles, leaves: &[(u32, u32)], spare: Option<SpareRefs>) {
         let ids = self.ids;
         let blocks: usize = leaves.iter().map(|l| (l.1 as usize).div_ceil(4)).sum();
-        if self.groups.is_unallocated()
+        if self.groups.capacity() == 0
             && let Some(spare) = spare
         {
-            self.groups = TriGroups::in_spare(spare, blocks);
+            self.groups = spare.into_vec(blocks);
         }
         self.groups.reserve(blocks);
+        // Tried, no measurable win, reverted (issue 12, big21, 2026-11-28, commit a8aec4c
+        // on branch big21): the groups array made to start on a cache line. A group is
+        // 160 bytes aligned to 16, and this array (a large `malloc` block, or the build's
+        // reference array taken over by `realloc`) starts 16 bytes past a page, so every
+        // second group starts 48 bytes into a line and spans four lines instead of three
+        // (its ids, read by the packet leaf loop first, in the fourth, which the
+        // traversals' three-line prefetch of a group does not reach). A `TriGroups`
+        // type stored the groups in 16-byte chunks behind up to three skipped ones (the
+        // spare reference memory still used) and read as `[TriGroup4]`; same checksums,
+        // 30 images identical. Interleaved `bench --threads 1 --reps 5` against the
+        // session's base, AVX-512, load 5-7 (`cpu` 0.2-0.7), Mrays per CPU-second,
+        // medians, base / aligned: 10^6 bvh8-packet primary 17.35 / 18.56 (7 rounds),
+        // 17.66 / 17.11 (6), 17.73 / 17.41 (8); shadow 7.06 / 6.75, 5.89 / 6.16, 5.95 /
+        // 6.91; bvh8-stream diffuse 2.96 / 2.69, 2.59 / 2.57; bunny bvh8-packet primary
+        // 37.67 / 33.82, bvh8-stream diffuse 3.73 / 4.09 (5). The L2's adjacent-line
+        // prefetch (lines in aligned pairs) likely brings the fourth line with the third.
         // Dead end (build5, 2026-11-24): advising the groups' fresh pages to be huge pages
         // (madvise) halved the page faults of a 10^6 build (17,547 -> 8,349) but not its
         // CPU time: 1 thread, load 8-12, CPU ms per build, interleaved rounds' medians:
@@ -111,7 +126,7 @@ impl<const N: usize> Collapse<'_, N> {
                     let k = id as usize;
                     g.set(lane, id, [tris.v0[k], tris.v1[k], tris.v2[k]]);
                 }
-                self.groups.push(&g);
+                self.groups.push(g);
             }
         }
     }
@@ -144,7 +159,7 @@ impl<const N: usize> Collapse<'_, N> {
                         ids,
                         triangles,
                         nodes: Vec::new(),
-                        groups: TriGroups::new(),
+                        groups: Vec::new(),
                     };
                     let r = part.collapse(k, parallel_levels - 1);
                     (part, r)
@@ -200,7 +215,7 @@ impl<const N: usize> Collapse<'_, N> {
             node.children = node.children.map(relocate);
             node
         }));
-        self.groups.append(&part.groups);
+        self.groups.extend(part.groups);
         relocate(root)
     }
 
@@ -372,7 +387,7 @@ mod tests {
             ids: &ids,
             triangles: Some(tris),
             nodes: Vec::new(),
-            groups: TriGroups::new(),
+            groups: Vec::new(),
         };
         let root = c.collapse(&tree, levels);
         let (mut nodes, mut groups) = (Vec::new(), Vec::new());

@@ -29,14 +29,12 @@
 //!
 //! One concern per file, as Embree keeps node types, node intersectors, single-ray and
 //! hybrid (packet) traversal apart: `node.rs` (layout and leaf encoding), `stack.rs`,
-//! `qnode.rs` (the compressed node), `groups.rs` (the leaves' triangle groups, the
-//! first on a cache line), `tree.rs` (the structure, its build and the
+//! `qnode.rs` (the compressed node), `tree.rs` (the structure, its build and the
 //! `Accel` entry points), `validate.rs`, `collapse.rs`,
 //! `single.rs`, `packet_setup.rs`, `packet_bounds.rs`, `packet.rs`, `sorted.rs` and
 //! `stream.rs`.
 
 mod collapse;
-mod groups;
 mod node;
 mod packet;
 mod packet_bounds;

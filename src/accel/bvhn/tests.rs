@@ -1,6 +1,5 @@
 //! Unit tests of the N-wide BVH internals (stack need, parallel collapse, packet bounds).
 use super::collapse::Collapse;
-use super::groups::TriGroups;
 use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width};
 use super::packet_bounds::PacketBounds;
 use super::packet_setup::PacketSetup;
@@ -71,7 +70,7 @@ fn parallel_collapse_lays_out_the_serial_tree() {
             ids: &ids,
             triangles: prims.as_triangles(),
             nodes: Vec::new(),
-            groups: TriGroups::new(),
+            groups: Vec::new(),
         };
         let root = c.collapse(&tree.expect("non-empty"), levels);
         // every bit of the arrays, NaN corners of unused lanes included

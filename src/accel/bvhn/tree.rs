@@ -2,7 +2,6 @@
 //! collapse), its shape statistics, and the [`Accel`] entry points.
 
 use super::collapse::{Collapse, PARALLEL_COLLAPSE_LEVELS};
-use super::groups::TriGroups;
 use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
@@ -20,7 +19,7 @@ use std::time::Instant;
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
     /// Triangle meshes: groups of four, SoA.
-    Triangles(TriGroups),
+    Triangles(Vec<TriGroup4>),
     /// Anything else: the primitives in leaf order and their original indices.
     Scalar { prims: P, ids: Vec<u32> },
 }
@@ -124,9 +123,9 @@ where
         // the whole build tree: 1.3 % of a 1-thread 10^6 build's perf samples (big19),
         // now skipped there.
         let (groups, spare) = match (&tree, triangles) {
-            (Some(t), Some(_)) if parallel => (TriGroups::in_spare(spare, t.leaf_blocks(4)), None),
-            (_, Some(_)) => (TriGroups::new(), Some(spare)),
-            _ => (TriGroups::new(), None),
+            (Some(t), Some(_)) if parallel => (spare.into_vec(t.leaf_blocks(4)), None),
+            (_, Some(_)) => (Vec::new(), Some(spare)),
+            _ => (Vec::new(), None),
         };
         let mut c = Collapse::<N> {
             ids: &ids,

@@ -1,10 +1,8 @@
 //! `validate()`: a built tree checked against its own leaves, independently of how
 //! it was built: references in range, every primitive in exactly one leaf, and every
 //! child box, as the traversal reads it (decoded, for compressed nodes), containing
-//! the exact bounds of the primitives below it; triangle groups start on a cache line
-//! (`groups.rs`).
+//! the exact bounds of the primitives below it.
 
-use super::groups::LINE;
 use super::node::{EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, leaf_range};
 use super::tree::{Bvh, Leaves};
 use crate::accel::Primitives;
@@ -19,15 +17,6 @@ where
     /// a ray miss a primitive it hits. An axis a compressed node could not quantise
     /// (NaN planes) counts as unbounded, which is how the slab tests read it.
     pub fn validate(&self) -> Result<(), String> {
-        if let Leaves::Triangles(groups) = &self.leaves
-            && !groups.is_empty()
-            && !(groups.as_ptr() as usize).is_multiple_of(LINE)
-        {
-            return Err(format!(
-                "triangle groups start {} bytes into a cache line",
-                groups.as_ptr() as usize % LINE
-            ));
-        }
         let mut seen = vec![false; self.info.primitives];
         if self.root != EMPTY_CHILD {
             self.check_subtree(self.root, &mut seen, 0)?;
