@@ -80,6 +80,22 @@ impl<const N: usize> Collapse<'_, N> {
             self.groups = spare.into_vec(blocks);
         }
         self.groups.reserve(blocks);
+        // Tried, no measurable win, reverted (issue 12, big21, 2026-11-28, commit a8aec4c
+        // on branch big21): the groups array made to start on a cache line. A group is
+        // 160 bytes aligned to 16, and this array (a large `malloc` block, or the build's
+        // reference array taken over by `realloc`) starts 16 bytes past a page, so every
+        // second group starts 48 bytes into a line and spans four lines instead of three
+        // (its ids, read by the packet leaf loop first, in the fourth, which the
+        // traversals' three-line prefetch of a group does not reach). A `TriGroups`
+        // type stored the groups in 16-byte chunks behind up to three skipped ones (the
+        // spare reference memory still used) and read as `[TriGroup4]`; same checksums,
+        // 30 images identical. Interleaved `bench --threads 1 --reps 5` against the
+        // session's base, AVX-512, load 5-7 (`cpu` 0.2-0.7), Mrays per CPU-second,
+        // medians, base / aligned: 10^6 bvh8-packet primary 17.35 / 18.56 (7 rounds),
+        // 17.66 / 17.11 (6), 17.73 / 17.41 (8); shadow 7.06 / 6.75, 5.89 / 6.16, 5.95 /
+        // 6.91; bvh8-stream diffuse 2.96 / 2.69, 2.59 / 2.57; bunny bvh8-packet primary
+        // 37.67 / 33.82, bvh8-stream diffuse 3.73 / 4.09 (5). The L2's adjacent-line
+        // prefetch (lines in aligned pairs) likely brings the fourth line with the third.
         // Dead end (build5, 2026-11-24): advising the groups' fresh pages to be huge pages
         // (madvise) halved the page faults of a 10^6 build (17,547 -> 8,349) but not its
         // CPU time: 1 thread, load 8-12, CPU ms per build, interleaved rounds' medians:

@@ -150,6 +150,19 @@ where
             Some(t) => c.collapse_recycling(t, 0, spare),
         };
         let Collapse { nodes, groups, .. } = c;
+        // Tried, no clear win, removed (issue 12, big21, 2026-11-28): the nodes renumbered
+        // after the collapse with siblings together (every node's interior children one
+        // block of up to N consecutive nodes, the blocks depth first, the first child's
+        // block next: the simplest of Yoon and Manocha's cache-conscious BVH layouts,
+        // Eurographics 2006) instead of the collapse's depth-first order, where only a
+        // node's first interior child is next to it. Same binary, the order switched by
+        // an environment variable, interleaved `examples/stream_profile 1000000 MODE
+        // WORKLOAD 7` rounds, AVX-512, 1 thread, load 5.5-7.4, Mrays per CPU-second
+        // (medians; depth first / siblings together): bvh8-packet primary 17.98 / 17.75
+        // (8 rounds) and 15.29 / 16.90 (10 rounds), shadow 6.15 / 6.74 (6) and 6.54 /
+        // 6.18 (8), bvh8-stream diffuse 3.00 / 3.05 (8); bunny primary 35.73 / 36.68
+        // (8). Same checksums. Within this host's noise either way, and the renumbering
+        // copies the node array (22 MB at 10^6) inside the build.
         // Compressed nodes are quantised from the exact ones (for exact nodes this is
         // the identity, collected in place).
         let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
