@@ -27,6 +27,20 @@ pub trait TraceMode: Send + Sync {
         let aos: [Ray; 16] = std::array::from_fn(|k| rays.ray(k));
         self.occluded(&aos[..rays.len], out);
     }
+    /// One packet's closest hits as lanes (Embree's `RTCRayHit16` form): lane `k`'s
+    /// distance and triangle in `t[k]` and `prim[k]`, NaN and `u32::MAX` where it has
+    /// none (lanes past `rays.len` included).
+    fn closest_packet_lanes(&self, rays: &RayPacket, t: &mut [f32; 16], prim: &mut [u32; 16]) {
+        let mut hits = [None; 16];
+        self.closest_packet(rays, &mut hits[..rays.len]);
+        hits_to_lanes(&hits, t, prim);
+    }
+    /// One packet's occlusion as bits (bit `k` for lane `k`).
+    fn occluded_packet_bits(&self, rays: &RayPacket) -> u32 {
+        let mut occ = [false; 16];
+        self.occluded_packet(rays, &mut occ[..rays.len]);
+        (0..16).fold(0, |m, k| m | u32::from(occ[k]) << k)
+    }
     /// Whether the mode takes a whole band's rays as one batch (stream modes, as
     /// Embree's `rtcIntersect1M`), instead of one tile's at a time.
     fn takes_band(&self) -> bool {
@@ -35,6 +49,13 @@ pub trait TraceMode: Send + Sync {
     fn build_ms(&self) -> f64;
     /// Bytes of the structure traced (nodes and leaves).
     fn memory_bytes(&self) -> usize;
+}
+
+/// Answers as lanes (see [`TraceMode::closest_packet_lanes`]).
+fn hits_to_lanes(hits: &[Option<Hit>; 16], t: &mut [f32; 16], prim: &mut [u32; 16]) {
+    for (k, h) in hits.iter().enumerate() {
+        (t[k], prim[k]) = h.map_or((f32::NAN, u32::MAX), |h| (h.t, h.prim));
+    }
 }
 
 /// One ray at a time through [`Accel::closest_hit`] / [`Accel::any_hit`].
@@ -66,36 +87,48 @@ impl TraceMode for SingleRay {
     }
 }
 
-/// The batch entry points of [`Accel`] (packet kernels where the structure has them).
-pub struct Batched {
+/// The packet kernels of an N-wide BVH: tiles as 16-ray SoA packets, answers in lanes.
+pub struct Packets<const N: usize, T: WideNode<N>>
+where
+    Width<N>: NodeWidth,
+{
     pub name: &'static str,
-    pub accel: Box<dyn Accel>,
+    pub bvh: Bvh<Triangles, N, T>,
 }
 
-impl TraceMode for Batched {
+impl<const N: usize, T: WideNode<N>> TraceMode for Packets<N, T>
+where
+    Width<N>: NodeWidth,
+{
     fn name(&self) -> &'static str {
         self.name
     }
     fn closest(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        self.accel.closest_hit_batch(rays, out);
+        self.bvh.closest_hit_batch(rays, out);
     }
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
-        self.accel.any_hit_batch(rays, out);
+        self.bvh.any_hit_batch(rays, out);
     }
     fn takes_packets(&self) -> bool {
         true
     }
     fn closest_packet(&self, rays: &RayPacket, out: &mut [Option<Hit>]) {
-        self.accel.closest_hit_packet(rays, out);
+        self.bvh.closest_hit_packet(rays, out);
     }
     fn occluded_packet(&self, rays: &RayPacket, out: &mut [bool]) {
-        self.accel.any_hit_packet(rays, out);
+        self.bvh.any_hit_packet(rays, out);
+    }
+    fn closest_packet_lanes(&self, rays: &RayPacket, t: &mut [f32; 16], prim: &mut [u32; 16]) {
+        self.bvh.closest_hit_packet_lanes(rays, t, prim);
+    }
+    fn occluded_packet_bits(&self, rays: &RayPacket) -> u32 {
+        self.bvh.any_hit_packet_bits(rays)
     }
     fn build_ms(&self) -> f64 {
-        self.accel.info().build_ms
+        self.bvh.info().build_ms
     }
     fn memory_bytes(&self) -> usize {
-        self.accel.info().memory_bytes
+        self.bvh.info().memory_bytes
     }
 }
 
@@ -140,6 +173,15 @@ impl TraceMode for HalfPackets {
             self.bvh.any_hit_packet8(rays, out);
         } else {
             self.bvh.any_hit_packet(rays, out);
+        }
+    }
+    fn closest_packet_lanes(&self, rays: &RayPacket, t: &mut [f32; 16], prim: &mut [u32; 16]) {
+        if self.half {
+            let mut hits = [None; 16];
+            self.bvh.closest_hit_packet8(rays, &mut hits);
+            hits_to_lanes(&hits, t, prim);
+        } else {
+            self.bvh.closest_hit_packet_lanes(rays, t, prim);
         }
     }
     fn build_ms(&self) -> f64 {
@@ -316,15 +358,15 @@ pub fn known_mode(name: &str) -> Option<&'static str> {
         .find(|&m| m == name)
 }
 
-/// An N-wide BVH over `tris` with node type `T`, prefetching in `kernel` forced to
-/// `prefetch` where given, the FMA node test on where `fma`.
-fn wide_accel<const N: usize, T: WideNode<N>>(
+/// The mode `name`: an N-wide BVH over `tris` with node type `T` traced by `kernel`
+/// (`single`, `packet` or `stream`), prefetching in `kernel` forced to `prefetch` where
+/// given, the FMA node test on where `fma`, the leaf test out of line where `call`.
+fn wide_mode<const N: usize, T: WideNode<N>>(
+    name: &'static str,
     tris: Triangles,
     kernel: &str,
-    prefetch: Option<bool>,
-    fma: bool,
-    call: bool,
-) -> Box<dyn Accel>
+    (prefetch, fma, call): (Option<bool>, bool, bool),
+) -> Option<Box<dyn TraceMode>>
 where
     Width<N>: NodeWidth,
 {
@@ -340,7 +382,18 @@ where
         }
         bvh.set_prefetch(p);
     }
-    Box::new(bvh)
+    Some(match kernel {
+        "single" => Box::new(SingleRay {
+            name,
+            accel: Box::new(bvh),
+        }),
+        "packet" => Box::new(Packets { name, bvh }),
+        "stream" => Box::new(Streamed {
+            name,
+            accel: Box::new(bvh),
+        }),
+        _ => return None,
+    })
 }
 
 /// Builds a mode over `tris` (the mesh in file order): `scalar-bvh2`, or
@@ -390,17 +443,12 @@ pub fn build_mode(name: &str, tris: &Triangles) -> Option<Box<dyn TraceMode>> {
         Some((b, _)) => (b, Some(false), false),
     };
     let (structure, kernel) = base.split_once('-')?;
-    let accel = match structure {
-        "bvh4" => wide_accel::<4, BvhNode<4>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
-        "bvh8" => wide_accel::<8, BvhNode<8>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
-        "bvh4c" => wide_accel::<4, QNode<4>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
-        "bvh8c" => wide_accel::<8, QNode<8>>(tris, kernel, prefetch, fma, name.ends_with("+call")),
-        _ => return None,
-    };
-    Some(match kernel {
-        "single" => Box::new(SingleRay { name, accel }),
-        "packet" => Box::new(Batched { name, accel }),
-        "stream" => Box::new(Streamed { name, accel }),
-        _ => return None,
-    })
+    let opts = (prefetch, fma, name.ends_with("+call"));
+    match structure {
+        "bvh4" => wide_mode::<4, BvhNode<4>>(name, tris, kernel, opts),
+        "bvh8" => wide_mode::<8, BvhNode<8>>(name, tris, kernel, opts),
+        "bvh4c" => wide_mode::<4, QNode<4>>(name, tris, kernel, opts),
+        "bvh8c" => wide_mode::<8, QNode<8>>(name, tris, kernel, opts),
+        _ => None,
+    }
 }

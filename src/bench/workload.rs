@@ -139,10 +139,20 @@ impl BenchCamera {
     fn lanes_into(&self, x: crate::simd::F16, y: crate::simd::F16, packet: &mut RayPacket) {
         use crate::simd::F16;
         let s = F16::splat;
-        let sx = (s(2.0) * (x + s(0.5)) / s(self.width as f32) - s(1.0))
-            * s(self.tan_half)
-            * s(self.aspect);
-        let sy = (s(1.0) - s(2.0) * (y + s(0.5)) / s(self.height as f32)) * s(self.tan_half);
+        // `v / n` as `v * (1 / n)` where `n` is a power of two: both scale `v >= 1` by a
+        // power of two exactly, so they are equal bit for bit (no overflow, no
+        // underflow), and the multiplication spares a 16-lane division on the chain
+        // to the packet's directions (two per packet at 1024 x 1024).
+        let over = |v: F16, n: u32| {
+            if n.is_power_of_two() {
+                v * s(1.0 / n as f32)
+            } else {
+                v / s(n as f32)
+            }
+        };
+        let sx =
+            (over(s(2.0) * (x + s(0.5)), self.width) - s(1.0)) * s(self.tan_half) * s(self.aspect);
+        let sy = (s(1.0) - over(s(2.0) * (y + s(0.5)), self.height)) * s(self.tan_half);
         let v = [0, 1, 2].map(|a| s(self.f[a]) + s(self.r[a]) * sx + s(self.u[a]) * sy);
         let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let inv = s(1.0) / len;
@@ -212,16 +222,29 @@ pub fn cosine_dir(n: Vec3, u1: f32, u2: f32) -> Vec3 {
 mod tests {
     use super::*;
 
+    /// Camera rays made in lanes are the scalar `dir`'s, bit for bit, for image sides
+    /// that are powers of two (divided by multiplying with the exact reciprocal) and
+    /// sides that are not, the image's corners and edges included.
     #[test]
     fn simd_camera_rays_are_bit_identical_to_scalar_ones() {
         let positions = [Vec3::new(-1.0, 0.2, -0.5), Vec3::new(0.7, 1.9, 0.3)];
-        let cam = BenchCamera::new(&Framing::new(&positions), 1024, 768);
-        let pixels: Vec<(u32, u32)> = (0..37).map(|i| (i * 27 % 1024, i * 19 % 768)).collect();
-        let mut rays = Vec::new();
-        cam.rays_into(&pixels, &mut rays);
-        for (r, &(x, y)) in rays.iter().zip(&pixels) {
-            assert_eq!(r.dir, cam.dir(x, y), "pixel ({x}, {y})");
-            assert_eq!(r.origin, cam.eye);
+        for (w, h) in [(1024, 768), (1024, 1024), (640, 2048), (70, 54), (1, 1)] {
+            let cam = BenchCamera::new(&Framing::new(&positions), w, h);
+            let mut pixels: Vec<(u32, u32)> = (0..37).map(|i| (i * 27 % w, i * 19 % h)).collect();
+            pixels.extend([
+                (0, 0),
+                (w - 1, 0),
+                (0, h - 1),
+                (w - 1, h - 1),
+                (w / 2, h / 2),
+            ]);
+            let mut rays = Vec::new();
+            cam.rays_into(&pixels, &mut rays);
+            for (r, &(x, y)) in rays.iter().zip(&pixels) {
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(r.dir), bits(cam.dir(x, y)), "{w}x{h} pixel ({x}, {y})");
+                assert_eq!(r.origin, cam.eye);
+            }
         }
     }
 

@@ -11,7 +11,7 @@ use crate::geometry::{
     Hit, LaneRays, PrimHit, ROBUST_FAR_SCALE, Ray, RayPacket, RayQuery, intersect_triangle,
 };
 use crate::simd::kernels::triangle_packet;
-use crate::simd::{F8, Lanes};
+use crate::simd::{F8, Lanes, PACKET_WIDTH, Packet};
 use glam::Vec3;
 
 /// Rays a packet part keeps traversing together; with fewer active rays it finishes the
@@ -48,16 +48,33 @@ where
         rays: &R,
         out: &mut [Option<Hit>],
     ) {
-        let setup = PacketSetup::<L>::new(rays);
         let out = &mut out[..rays.lane_count()];
-        // No valid lane (no group) also takes this path: every answer `None`.
-        if setup.groups == 0 || !setup.coherent() || self.stack_need >= PACKET_STACK {
-            out.fill(None);
-            for_each_bit(setup.valid, |i| {
-                let q = lane_query(rays, i);
-                out[i] = self.closest_from(&q, self.root, q.tmax);
+        let all = self.packet_closest_lanes::<L, R>(rays);
+        let (t, u, v, prim) = (
+            all.t.to_array(),
+            all.u.to_array(),
+            all.v.to_array(),
+            all.prim.to_array(),
+        );
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = (all.hit >> i & 1 == 1).then(|| Hit {
+                t: t.as_ref()[i],
+                prim: prim.as_ref()[i].to_bits(),
+                u: u.as_ref()[i],
+                v: v.as_ref()[i],
             });
-            return;
+        }
+    }
+
+    /// The closest hits of `rays` (exactly `L::WIDTH`) in lanes: lane `i` holds a hit
+    /// where bit `i` of `hit` is set (what [`packet_closest`](Self::packet_closest)
+    /// writes as `Option<Hit>`s).
+    #[inline(always)]
+    fn packet_closest_lanes<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R) -> PacketHits<L> {
+        let setup = PacketSetup::<L>::new(rays);
+        // No valid lane (no group) also takes this path: no hit.
+        if setup.groups == 0 || !setup.coherent() || self.stack_need >= PACKET_STACK {
+            return self.packet_closest_by_lane(rays, setup.valid);
         }
         // The groups' answers merged in lanes, then every lane written once: before,
         // `out` was filled with `None` first (compiled as AVX-512 scatters of the
@@ -86,19 +103,36 @@ where
                 hit: all.hit | h.hit,
             };
         }
-        let (t, u, v, prim) = (
-            all.t.to_array(),
-            all.u.to_array(),
-            all.v.to_array(),
-            all.prim.to_array(),
-        );
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = (all.hit >> i & 1 == 1).then(|| Hit {
-                t: t.as_ref()[i],
-                prim: prim.as_ref()[i].to_bits(),
-                u: u.as_ref()[i],
-                v: v.as_ref()[i],
-            });
+        all
+    }
+
+    /// The lanes of `valid` traced one by one (incoherent packets, trees too deep for
+    /// the packet stack), their hits gathered into lanes.
+    #[cold]
+    #[inline(never)]
+    fn packet_closest_by_lane<L: Lanes, R: LaneRays + ?Sized>(
+        &self,
+        rays: &R,
+        valid: u32,
+    ) -> PacketHits<L> {
+        let zero = L::splat(0.0).to_array();
+        let (mut t, mut u, mut v) = (zero, zero, zero);
+        let mut prim = prim_lanes::<L>(u32::MAX).to_array();
+        let mut hit = 0;
+        for_each_bit(valid, |i| {
+            let q = lane_query(rays, i);
+            if let Some(h) = self.closest_from(&q, self.root, q.tmax) {
+                (t.as_mut()[i], u.as_mut()[i], v.as_mut()[i]) = (h.t, h.u, h.v);
+                prim.as_mut()[i] = f32::from_bits(h.prim);
+                hit |= 1 << i;
+            }
+        });
+        PacketHits {
+            t: L::from_array(t),
+            u: L::from_array(u),
+            v: L::from_array(v),
+            prim: L::from_array(prim),
+            hit,
         }
     }
 
@@ -280,20 +314,30 @@ where
     }
 
     pub(super) fn packet_any<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R, out: &mut [bool]) {
+        let occluded = self.packet_any_bits::<L, R>(rays);
+        for (i, o) in out[..rays.lane_count()].iter_mut().enumerate() {
+            *o = occluded >> i & 1 == 1;
+        }
+    }
+
+    /// Bits of the lanes of `rays` (exactly `L::WIDTH`) that hit something within
+    /// their interval.
+    #[inline(always)]
+    fn packet_any_bits<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R) -> u32 {
         let setup = PacketSetup::<L>::new(rays);
-        out[..rays.lane_count()].fill(false);
+        let mut occluded = 0;
         if !setup.coherent() || self.stack_need >= PACKET_STACK {
             for_each_bit(setup.valid, |i| {
-                out[i] = self.any_from(&lane_query(rays, i), self.root)
+                occluded |= u32::from(self.any_from(&lane_query(rays, i), self.root)) << i
             });
-            return;
+            return occluded;
         }
         for g in 0..setup.groups {
             let p = setup.group(g);
             let mask = setup.group_mask[g];
-            let occluded = self.packet_any_group(&p, rays, mask, setup.shared_origin);
-            for_each_bit(occluded, |i| out[i] = true);
+            occluded |= self.packet_any_group(&p, rays, mask, setup.shared_origin);
         }
+        occluded
     }
 
     /// Bits of the lanes in `mask` that hit something within their interval (`shared`
@@ -504,5 +548,136 @@ where
         for (r, o) in rays.chunks(8).zip(out.chunks_mut(8)) {
             self.packet_any::<F8, _>(r, o);
         }
+    }
+
+    /// Closest hits of a packet as lanes, the form of Embree's `RTCRayHit16`: lane `k`'s
+    /// distance and primitive in `t[k]` and `prim[k]`, NaN and `u32::MAX` where it has
+    /// none (lanes past `packet.len` and invalid rays included). The same answers as
+    /// [`closest_hit_packet`](crate::accel::Accel::closest_hit_packet), without its
+    /// twenty-byte `Option<Hit>` per lane, which a caller that stores lanes reads back
+    /// with a branch per lane (issue 12, pk21: building those answers was 2.9 % of a
+    /// bunny primary pass and reading them back in the bench harness 4 %, `perf record`
+    /// of `examples/stream_profile bunny.obj bvh8-packet primary 60`).
+    pub fn closest_hit_packet_lanes(
+        &self,
+        packet: &RayPacket,
+        t: &mut [f32; PACKET_WIDTH],
+        prim: &mut [u32; PACKET_WIDTH],
+    ) {
+        let h = self.packet_closest_lanes::<Packet, _>(packet);
+        let sel = Packet::mask_from_bits(h.hit);
+        *t = Packet::select(sel, h.t, Packet::splat(f32::NAN)).to_array();
+        *prim = Packet::select(sel, h.prim, prim_lanes(u32::MAX))
+            .to_array()
+            .map(f32::to_bits);
+    }
+
+    /// Occlusion of a packet as bits: bit `k` set where lane `k` hits something
+    /// within its interval (the answers of
+    /// [`any_hit_packet`](crate::accel::Accel::any_hit_packet)).
+    pub fn any_hit_packet_bits(&self, packet: &RayPacket) -> u32 {
+        self.packet_any_bits::<Packet, _>(packet)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::accel::bvhn::node::{NodeWidth, Width};
+    use crate::accel::bvhn::tree::{Bvh, Bvh4, Bvh8};
+    use crate::accel::{Accel, Triangles};
+    use crate::geometry::{Ray, RayPacket};
+    use glam::Vec3;
+
+    /// A small deterministic generator (xorshift) of floats in [0, 1].
+    fn rng(mut s: u32) -> impl FnMut() -> f32 {
+        move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s as f32 / u32::MAX as f32
+        }
+    }
+
+    /// Checks one packet of `rays` in `bvh` (see the test); returns (hits, occluded).
+    fn check<const N: usize>(bvh: &Bvh<Triangles, N>, rays: &[Ray]) -> (u32, u32)
+    where
+        Width<N>: NodeWidth,
+    {
+        let packet = RayPacket::from_rays(rays);
+        let len = rays.len();
+        let (mut want, mut want_occ) = ([None; 16], [false; 16]);
+        bvh.closest_hit_packet(&packet, &mut want[..len]);
+        bvh.any_hit_packet(&packet, &mut want_occ[..len]);
+        let (mut t, mut prim) = ([0.0; 16], [0; 16]);
+        bvh.closest_hit_packet_lanes(&packet, &mut t, &mut prim);
+        let bits = bvh.any_hit_packet_bits(&packet);
+        let (mut hits, mut occluded) = (0, 0);
+        for k in 0..16 {
+            let single = rays.get(k).and_then(|r| bvh.closest_hit(r));
+            assert_eq!(want[k], single, "lane {k}");
+            match single {
+                Some(h) => {
+                    hits += 1;
+                    assert_eq!(
+                        (t[k].to_bits(), prim[k]),
+                        (h.t.to_bits(), h.prim),
+                        "lane {k}"
+                    );
+                }
+                None => assert!(t[k].is_nan() && prim[k] == u32::MAX, "lane {k}"),
+            }
+            let occ = rays.get(k).is_some_and(|r| bvh.any_hit(r));
+            assert_eq!(want_occ[k], occ, "lane {k}");
+            assert_eq!(bits >> k & 1 == 1, occ, "lane {k}");
+            occluded += u32::from(occ);
+        }
+        (hits, occluded)
+    }
+
+    /// The answers in lanes (`closest_hit_packet_lanes`, `any_hit_packet_bits`) are
+    /// the `Option<Hit>` and `bool` answers of the same packets, lane for lane and bit
+    /// for bit, and those are the single-ray kernel's: coherent packets with a shared
+    /// origin and with scattered ones, incoherent packets (traced ray by ray), short
+    /// packets, invalid rays and intervals that end early, over a triangle soup, in
+    /// both tree widths. Lanes past the packet's length answer a miss.
+    #[test]
+    fn packet_answers_in_lanes_are_the_packet_answers() {
+        let mut r = rng(0x1234_5678);
+        // A closed tessellated mesh around the origin, about unit size.
+        let tris = crate::bench::BenchMesh::procedural(2000).triangles;
+        let (b4, b8) = (Bvh4::build(tris.clone()), Bvh8::build(tris));
+        let (mut hits, mut occluded, mut lanes) = (0, 0, 0);
+        for trial in 0..400 {
+            let len = [16, 16, 16, 11, 1][trial % 5];
+            let eye = Vec3::new(0.0, 0.0, -3.0) + Vec3::new(r(), r(), r()) * 0.5;
+            let rays: Vec<Ray> = (0..len)
+                .map(|k| {
+                    let o = match trial % 3 {
+                        0 => eye,
+                        _ => eye + Vec3::new(r(), r(), r()) * 0.2,
+                    };
+                    let d = if trial % 7 == 3 {
+                        Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5)
+                    } else {
+                        Vec3::new(r() * 0.8 - 0.4, r() * 0.8 - 0.4, 1.0)
+                    };
+                    match (trial + k) % 13 {
+                        0 => Ray::new(o, Vec3::ZERO),
+                        1 => Ray::new(Vec3::splat(f32::NAN), d),
+                        2 | 3 => Ray::segment(o, d, 0.0, 1.5 + r() * 2.0),
+                        _ => Ray::new(o, d),
+                    }
+                })
+                .collect();
+            for (h, o) in [check(&b4, &rays), check(&b8, &rays)] {
+                hits += h;
+                occluded += o;
+                lanes += len as u32;
+            }
+        }
+        assert!(
+            hits > lanes / 10 && occluded > lanes / 10 && hits < lanes - lanes / 10,
+            "too few hits or misses: {hits} hits, {occluded} occluded of {lanes} rays"
+        );
     }
 }
