@@ -108,7 +108,16 @@ mod tests {
         let (from, to) = (3 * page + 40, 9 * page + 200);
         // SAFETY: inside the mapping, u8 has no invalid values.
         let span = unsafe { std::slice::from_raw_parts_mut(base.add(from), to - from) };
-        assert!(populate_for_writing(span));
+        if !populate_for_writing(span) {
+            // Kernels before Linux 5.14 reject the advice with EINVAL: the renderer
+            // then takes the page faults as before, and there is nothing to check.
+            let err = std::io::Error::last_os_error();
+            // SAFETY: the mapping made above.
+            unsafe { libc::munmap(base.cast(), pages * page) };
+            assert_eq!(err.raw_os_error(), Some(libc::EINVAL), "madvise: {err}");
+            eprintln!("skipped: this kernel has no MADV_POPULATE_WRITE ({err})");
+            return;
+        }
         let now = resident(base, pages, page);
         for (p, r) in now.iter().enumerate() {
             assert_eq!(*r, (3..=9).contains(&p), "page {p}");
