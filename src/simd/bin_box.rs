@@ -254,11 +254,9 @@ mod tests {
     /// the points and in the compared value (a NaN `k` goes right).
     #[test]
     fn grow_either_matches_selected_min_and_max() {
-        let mut x = 0x2545_f491_u32;
+        let mut draw = crate::test_rng::xorshift64(0x2545_f491_4f6c_dd1d);
         let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
+            let x = (draw() >> 32) as u32;
             match x % 13 {
                 0 => f32::NAN,
                 1 => 0.0,

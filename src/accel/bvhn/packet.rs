@@ -588,14 +588,10 @@ mod tests {
     use crate::geometry::{Ray, RayPacket};
     use glam::Vec3;
 
-    /// A small deterministic generator (xorshift) of floats in [0, 1].
-    fn rng(mut s: u32) -> impl FnMut() -> f32 {
-        move || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            s as f32 / u32::MAX as f32
-        }
+    /// Deterministic floats in [0, 1] from the tests' shared xorshift64.
+    fn rng(seed: u64) -> impl FnMut() -> f32 {
+        let mut next = crate::test_rng::xorshift64(seed);
+        move || (next() >> 40) as f32 / (1u32 << 24) as f32
     }
 
     /// Checks one packet of `rays` in `bvh` (see the test); returns (hits, occluded).
@@ -642,7 +638,7 @@ mod tests {
     /// both tree widths. Lanes past the packet's length answer a miss.
     #[test]
     fn packet_answers_in_lanes_are_the_packet_answers() {
-        let mut r = rng(0x1234_5678);
+        let mut r = rng(0x1234_5678_9abc_def1);
         // A closed tessellated mesh around the origin, about unit size.
         let tris = crate::bench::BenchMesh::procedural(2000).triangles;
         let (b4, b8) = (Bvh4::build(tris.clone()), Bvh8::build(tris));
