@@ -33,7 +33,7 @@ use crate::simd::Packet;
 use crate::simd::direct_light::QuadLight;
 use crate::simd::glass_shadow::{SphereRoots, crossings_of_roots, meets_of_roots, settle_gathered};
 use crate::simd::kernels::RayLanes;
-use crate::simd::kernels::sphere_roots;
+use crate::simd::kernels::{sphere_roots, sphere_roots_for};
 use crate::simd::lanes3::V3;
 use crate::simd::quad_samples::{OriginBox, Unpacked3};
 use crate::simd::sphere_clearance::{F64_SLACK, clearance, gamma64};
@@ -886,10 +886,15 @@ pub(crate) fn settle_near_spheres(
 ) -> LaneSettled {
     let mut roots: [Option<SphereRoots<Packet>>; TINY_MAX_PRIMITIVES] = [None; TINY_MAX_PRIMITIVES];
     let mut sph = 0u32;
+    // Every lane read below is one of `open` (`rest`, `sph` and the glass settlement's
+    // lanes are parts of it), so a sphere whose line misses every open lane (no real
+    // discriminant there) keeps zeros and no bits without its square root and two
+    // divisions (`sphere_roots_for`): the same answers. Most shadow rays of a lane
+    // group pass a sphere by together (floor points outside its shadow).
     for (k, &(center, radius)) in spheres.iter().enumerate() {
         let rest = open & !sph;
         if all >> (k & 31) & 1 == 1 && rest != 0 {
-            let r = sphere_roots(lanes, center, radius);
+            let r = sphere_roots_for(lanes, center, radius, open);
             sph |= meets_of_roots(lanes, r, tmax, rest);
             if let Some(slot) = roots.get_mut(k) {
                 *slot = Some(r);
@@ -1341,5 +1346,66 @@ mod tests {
             clear > cases / 5 && close > 200 && spread_clear > 5,
             "{clear} clear, {close} close, {spread_clear} spread"
         );
+    }
+
+    /// What `settle_near_spheres` relies on in `sphere_roots_for`: on the lanes of
+    /// `active` it answers as `sphere_roots` does, bit for bit (roots and bits), or,
+    /// where it skips the roots, no lane of `active` had any. Random lane groups of
+    /// shadow-like segments (origins near a floor, towards points above it) against
+    /// random spheres, each with a random set of active lanes; both outcomes must occur.
+    #[test]
+    fn sphere_roots_for_answers_as_sphere_roots_on_the_active_lanes() {
+        let mut next = xorshift64(0x9e37_79b9_7f4a_7c15);
+        let mut unit = move || (next() >> 40) as f32 / (1u64 << 24) as f32;
+        let (mut skipped, mut computed, mut with_roots) = (0, 0, 0);
+        for case in 0..4000 {
+            let mut r3 = |s: f32| Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * s;
+            let centre = r3(4.0) + Vec3::new(0.0, 1.5, 0.0);
+            let radius = 0.1 + (r3(1.0).x + 0.5) * 1.5;
+            let light = Vec3::new(0.0, 6.0, 0.0) + r3(6.0);
+            let spread = [0.05f32, 1.0, 8.0][case % 3];
+            let around = r3(8.0) * Vec3::new(1.0, 0.0, 1.0);
+            let mut o = [[0.0f32; 16]; 3];
+            let mut d = [[0.0f32; 16]; 3];
+            for l in 0..16 {
+                let p = around + r3(spread) * Vec3::new(1.0, 0.0, 1.0);
+                let dir = light + r3(0.5) - p;
+                for c in 0..3 {
+                    (o[c][l], d[c][l]) = (p[c], dir[c]);
+                }
+            }
+            let lanes = RayLanes {
+                o: o.map(Packet::new),
+                d: d.map(Packet::new),
+                tmin: Packet::splat(0.0),
+            };
+            let active = (next_mask(unit()) & 0xffff).max(1);
+            let (lo, hi, bits) = sphere_roots(&lanes, centre, radius);
+            let (flo, fhi, fbits) = sphere_roots_for(&lanes, centre, radius, active);
+            assert!(
+                fbits != 0 || bits & active == 0,
+                "no roots where lanes {:#x} have some",
+                bits & active
+            );
+            if fbits == 0 {
+                skipped += 1;
+                continue;
+            }
+            computed += 1;
+            assert_eq!(fbits, bits, "bits");
+            with_roots += (bits & active != 0) as usize;
+            for l in (0..16).filter(|l| active >> l & 1 == 1) {
+                let pair =
+                    |a: Packet, b: Packet| (a.to_array()[l].to_bits(), b.to_array()[l].to_bits());
+                assert_eq!(pair(flo, fhi), pair(lo, hi), "lane {l}");
+            }
+        }
+        eprintln!("{skipped} skipped, {computed} computed ({with_roots} with roots)");
+        assert!(skipped > 500 && with_roots > 500, "{skipped} {with_roots}");
+    }
+
+    /// A lane mask from a uniform number in `[0, 1)`.
+    fn next_mask(u: f32) -> u32 {
+        (u * 65536.0) as u32
     }
 }

@@ -146,6 +146,15 @@ impl Pipeline {
 
     /// Camera rays per batch: [`MAX_WAVE_PATHS`] over the camera ray itself plus its
     /// first hit's fan-out, at least one.
+    ///
+    /// The fan-out still counts the shadow rays that a tiny scene settles in the
+    /// shading lanes (`point_shadow`, `area_light`) and never queues, so those frames
+    /// run smaller batches than the bound allows (whitted_blur16 1024 camera rays,
+    /// whitted_area64 117). Tried (helper bl22, 2026-11-29, a temporary override of
+    /// this value, one binary, images byte-identical; process CPU ms, 5 interleaved
+    /// rounds, 1 thread, host load 6-8): whitted_blur16 1365 -> 2048 rays
+    /// 1341/1452/1732 -> 1358/1485/1694 (min/median/max), whitted_area64 120 -> 2048
+    /// 1122/1217/1381 -> 1258/1283/1382: no gain, so the count stays as it is.
     pub fn camera_batch(scene: &Scene, plan: &SamplePlan) -> usize {
         (MAX_WAVE_PATHS / (1 + Self::first_hit_fanout(scene, plan))).max(1)
     }

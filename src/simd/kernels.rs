@@ -419,6 +419,19 @@ pub fn sphere_roots<L: Lanes>(r: &RayLanes<L>, center: Vec3, radius: f32) -> (L,
     roots_of::<L, false>(r, center, radius, u32::MAX)
 }
 
+/// [`sphere_roots`] for a caller that reads only the lanes of `active`: where none of
+/// them has a real discriminant, zeros and no bits (the square root and the two
+/// divisions after it skipped; see `roots_of`), else `sphere_roots`' answer.
+#[inline(always)]
+pub fn sphere_roots_for<L: Lanes>(
+    r: &RayLanes<L>,
+    center: Vec3,
+    radius: f32,
+    active: u32,
+) -> (L, L, u32) {
+    roots_of::<L, true>(r, center, radius, active)
+}
+
 /// [`sphere_roots`]; with `SKIP`, where no lane of `active` has a real discriminant,
 /// zeros and no bits as soon as that is known: the square root and the two divisions
 /// after it are skipped, which changes no answer (every lane's bits would have been
