@@ -154,7 +154,14 @@
 //! `quad_samples::per_block` in registers), the streams' states likewise
 //! (`PackLayout::draw_states`). Samples of `shade_quads_packed` 10964 -> 9182 (the
 //! cull) -> 8258 (the stores), of the whole process 24174 -> 22552 -> 20960 (PNG
-//! deflate ~1390 in each). Left: the light samples' square root and divisions
+//! deflate ~1390 in each). Timed (render phase, `--stats-json`, 9 rounds interleaved
+//! with the previous binary, flock'd, min / median / max ms): 1 thread, load ~3.4
+//! 161/210/266 -> 149/173/216, load ~1.8 159/224/234 -> 132/195/212; 2 threads, load
+//! ~1.6 76/97/129 -> 67/82/92; whitted_area64 (not packed) 1 thread 5 rounds
+//! 1061/1145/1455 -> 917/1149/1415. `benches/mitsuba/run.sh` at 1 thread, load ~1.5:
+//! dof_area 1.29x and 1.41x (Mitsuba 0.184 / 0.143 s, 0.183 / 0.130 s); at load ~3.5
+//! 0.87x (0.196 / 0.227 s; the previous binary 0.86x in the run before). Left: the
+//! light samples' square root and divisions
 //! (`QuadSamples::lanes`, ~1 in 8 of the function's samples), the SplitMix draws'
 //! 64-bit multiplies (`PackLayout::points`), the shear per key group
 //! (`TinyGroup::from_lanes`, one division) and the floor plane's side per point
