@@ -141,6 +141,31 @@
 //! 2 cores, min / median / max ms): 1 thread 9 rounds 350/430/594 -> 309/363/484 and
 //! 334/350/398 -> 308/323/395 (shade 241/264/311 -> 216/248/330); 2 threads 7 rounds
 //! 380/397/438 -> 342/361/478.
+//!
+//! Then (branch `dof22`; images byte-identical against the previous binary on the 30
+//! PNGs of `imgcheck`): perf of dof_area 960x720 (1 thread, AVX-512, 8 kHz) put
+//! `GroupCull::bits` and its per-point loop at ~14 % of `shade_quads_packed`'s samples
+//! and `QuadCull::new`/`clear` at ~4 % of the frame: in AVX-512 builds a pack no
+//! longer culls its spheres (`tiny_shadow::PACK_SPHERE_CULL`, as the point lights'
+//! `SPHERE_CULL`), and a scene without glass tests its spheres by `sphere_lanes`
+//! (no square root or divisions where no lane has a real discriminant). Then stores
+//! that 64-byte loads waited on: the pack's `PackLayout` copied per pack (~2.7 %),
+//! the albedo and path weight stored point by point and loaded as lanes (~2 %, now
+//! `quad_samples::per_block` in registers), the streams' states likewise
+//! (`PackLayout::draw_states`). Samples of `shade_quads_packed` 10964 -> 9182 (the
+//! cull) -> 8258 (the stores), of the whole process 24174 -> 22552 -> 20960 (PNG
+//! deflate ~1390 in each). Timed (render phase, `--stats-json`, 9 rounds interleaved
+//! with the previous binary, flock'd, min / median / max ms): 1 thread, load ~3.4
+//! 161/210/266 -> 149/173/216, load ~1.8 159/224/234 -> 132/195/212; 2 threads, load
+//! ~1.6 76/97/129 -> 67/82/92; whitted_area64 (not packed) 1 thread 5 rounds
+//! 1061/1145/1455 -> 917/1149/1415. `benches/mitsuba/run.sh` at 1 thread, load ~1.5:
+//! dof_area 1.29x and 1.41x (Mitsuba 0.184 / 0.143 s, 0.183 / 0.130 s); at load ~3.5
+//! 0.87x (0.196 / 0.227 s; the previous binary 0.86x in the run before). Left: the
+//! light samples' square root and divisions
+//! (`QuadSamples::lanes`, ~1 in 8 of the function's samples), the SplitMix draws'
+//! 64-bit multiplies (`PackLayout::points`), the shear per key group
+//! (`TinyGroup::from_lanes`, one division) and the floor plane's side per point
+//! (`TrianglePlane::side`, f64 for origins level with the floor).
 
 use super::hit_batch::HitBatch;
 use super::path_keys::{HitSet, hit_points_append, hit_points_split, path_rng};
@@ -152,7 +177,7 @@ use super::tiny_shadow::{GroupCull, LaneOccluders, SegmentSides, SphereBits};
 use crate::simd::direct_light::{Highlight, QuadLight, SurfaceLanes, quad_light};
 use crate::simd::jittered_pack::PackLayout;
 use crate::simd::lanes3::V3;
-use crate::simd::quad_samples::{OriginBox, QuadSamples, block_sums, spread};
+use crate::simd::quad_samples::{OriginBox, QuadSamples, block_sums, per_block, spread};
 use crate::simd::{Lanes, Packet};
 use glam::Vec3;
 
@@ -427,14 +452,9 @@ pub(crate) fn shade_quads_packed(
         z: spread(v.z, &from),
     };
     let gather = |a: &super::hit_batch::Soa3| spread3(a.lanes(k0));
-    let per_point = |f: fn(&ShadingPoint) -> Vec3| {
-        let (mut x, mut y, mut z) = ([0.0f32; 16], [0.0f32; 16], [0.0f32; 16]);
-        for (j, h) in pts.iter().enumerate() {
-            let v = f(h);
-            (x[j & 15], y[j & 15], z[j & 15]) = (v.x, v.y, v.z);
-        }
-        spread3(V3::load(&x, &y, &z))
-    };
+    // The points' own values (not the batch's) splatted over their blocks
+    // (`per_block`: in registers, no stores to load back).
+    let per_point = |f: fn(&ShadingPoint) -> Vec3| per_block(n, shift, |j| f(&pts[j]));
     let smooth = Packet::new(batch.smooth[k0..k0 + 16].try_into().expect("16 lanes"));
     let s = SurfaceLanes {
         p: gather(&batch.p),
@@ -462,57 +482,37 @@ pub(crate) fn shade_quads_packed(
             left |= 1 << j;
         }
     }
-    // The spheres near each light's segments: per point from the cull of its lane
-    // group of hits (`GroupCull`, as `shade_quads`), united per light.
+    // The spheres near each light's segments: every sphere (`PACK_SPHERE_CULL`), or
+    // per point from the cull of its lane group of hits (`GroupCull`, as
+    // `shade_quads`), united per light.
     points.near.clear();
-    points.near.resize(lights, occluders.sphere_bits(None));
-    let mut first = true;
-    let origins = fast.lane_origins();
-    for (j, h) in pts.iter().enumerate() {
-        if left >> j & 1 == 1 {
-            continue;
-        }
-        let k = h.k;
-        let culled = points
-            .cull
-            .bits(occluders, origins.at(j * stride), &quads.lights, || {
-                let end = batch.ray.len().max(k + 1);
-                let live = (1u32 << (end - k).min(16)) - 1;
-                let lanes = |a: &super::hit_batch::Soa3| a.lanes(k);
-                let (b, e, n) = (lanes(&batch.base), lanes(&batch.p_error), lanes(&batch.ng));
-                OriginBox::of_group(b, e, n, live)
-            });
-        for (i, near) in points.near.iter_mut().enumerate() {
-            let bits = if culled {
-                points.cull.near(i)
-            } else {
-                occluders.sphere_bits(None)
-            };
-            *near = if first { bits } else { near.union(bits) };
-        }
-        first = false;
+    points.near.resize(lights, occluders.every_sphere());
+    if occluders.pack_sphere_cull() {
+        cull_pack_spheres(occluders, quads, pts, left, stride, &fast, points);
     }
     let plan = &shader.plan;
     // `hit_points_append` draws a square jittered set (the default sampler's light
     // points) by `append_2d_split`, whatever the depth.
     //
     // Measured: made per pack, `PackLayout::new` was 3.6 % of the frame (perf).
+    //
+    // Borrowed, not copied: a copy of the layout (~0.5 kB) per pack was ~2.7 % of
+    // `shade_quads_packed`'s samples (perf, dof_area 960x720, 1 thread).
     let key = (samples as u32, stride);
-    let layout = match points.layout {
-        Some((k, layout)) if k == key => layout,
-        _ => {
-            let layout = PackLayout::new(samples as u32, stride);
-            points.layout = Some((key, layout));
-            layout
-        }
+    if !matches!(points.layout, Some((k, _)) if k == key) {
+        points.layout = Some((key, PackLayout::new(samples as u32, stride)));
     }
-    .filter(|_| plan.sampler == SamplerKind::Jittered);
+    let layout = points
+        .layout
+        .as_ref()
+        .and_then(|(_, layout)| layout.as_ref())
+        .filter(|_| plan.sampler == SamplerKind::Jittered);
     // The points' base points, point `j` in lane `j` (as loaded from the batch).
     let bases = batch.base.lanes(k0);
     let accepted_points = !left & ((1u32 << n) - 1);
     for (i, (index, quad)) in quads.lights.iter().enumerate() {
         let near = occluders.spheres_near_points(bases, accepted_points, points.near[i], quad);
-        let (u, v) = match &layout {
+        let (u, v) = match layout {
             // A square jittered set per point: the pack's draws in lanes, each point's
             // from its stream (`PackLayout`, the loop below bit for bit).
             Some(layout) => {
@@ -586,6 +586,48 @@ pub(crate) fn shade_quads_packed(
         }
     }
     left
+}
+
+/// The pack's sphere cull ([`PACK_SPHERE_CULL`](super::tiny_shadow::PACK_SPHERE_CULL)):
+/// per light, the union over the points not in `left` of the spheres near their
+/// segments, from the cull of each point's lane group of hits (`GroupCull`, as
+/// [`shade_quads`]), into `points.near`.
+fn cull_pack_spheres(
+    occluders: &LaneOccluders,
+    quads: &QuadLights,
+    pts: &[ShadingPoint],
+    left: u32,
+    stride: usize,
+    fast: &QuadSamples,
+    points: &mut LightPoints,
+) {
+    let batch = pts[0].batch;
+    let mut first = true;
+    let origins = fast.lane_origins();
+    for (j, h) in pts.iter().enumerate() {
+        if left >> j & 1 == 1 {
+            continue;
+        }
+        let k = h.k;
+        let culled = points
+            .cull
+            .bits(occluders, origins.at(j * stride), &quads.lights, || {
+                let end = batch.ray.len().max(k + 1);
+                let live = (1u32 << (end - k).min(16)) - 1;
+                let lanes = |a: &super::hit_batch::Soa3| a.lanes(k);
+                let (b, e, n) = (lanes(&batch.base), lanes(&batch.p_error), lanes(&batch.ng));
+                OriginBox::of_group(b, e, n, live)
+            });
+        for (i, near) in points.near.iter_mut().enumerate() {
+            let bits = if culled {
+                points.cull.near(i)
+            } else {
+                occluders.every_sphere()
+            };
+            *near = if first { bits } else { near.union(bits) };
+        }
+        first = false;
+    }
 }
 
 #[cfg(test)]
@@ -743,7 +785,8 @@ mod tests {
     /// 16 in packs of one point (lane-group width) and 64 left to `shade_quads`, at
     /// the first hits and two waves of children (mirror and glass), the Sobol sampler
     /// (the pixel's sequence at first hits) and the jittered one (the point's own
-    /// stream), transmitted shadows through the glass sphere on and off. Each lane's
+    /// stream), transmitted shadows through the glass sphere on and off, the pack's
+    /// sphere cull (`PACK_SPHERE_CULL`) on and off. Each lane's
     /// albedo and weight differ from its neighbours'.
     #[test]
     fn packed_points_match_one_point_at_a_time_bit_for_bit() {
@@ -751,10 +794,15 @@ mod tests {
         let scene = scene();
         let accel = SceneAccel::build(&scene, AccelKind::Bvh4);
         let (mut packs, mut lit_samples, mut points_compared) = (0usize, 0u64, 0usize);
+        let mut culled_packs = [0usize; 2];
         for samples in [1u32, 2, 3, 4, 8, 9, 16, 64] {
             for sampler in [SamplerKind::Sobol, SamplerKind::Jittered] {
-                for through_glass in [true, false] {
-                    let name = format!("{samples} samples, {sampler}, glass {through_glass}");
+                for (through_glass, cull) in
+                    [(true, false), (false, false), (true, true), (false, true)]
+                {
+                    let name = format!(
+                        "{samples} samples, {sampler}, glass {through_glass}, pack cull {cull}"
+                    );
                     let mut opts = RenderOptions::from_scene(&scene);
                     opts.samples.shadow = samples;
                     opts.transmitted_shadows = through_glass;
@@ -762,7 +810,8 @@ mod tests {
                     plan.sampler = sampler;
                     let shader = Shader::new(&scene, &opts, plan);
                     let filter = ShadowFilter::new(&scene, through_glass, accel.kind);
-                    let occluders = LaneOccluders::new(&accel, filter.as_ref());
+                    let occluders = LaneOccluders::new(&accel, filter.as_ref())
+                        .map(|o| o.with_pack_sphere_cull(cull));
                     let lanes = LaneShading::new(&scene, plan.environment)
                         .expect("lane path")
                         .with_area_occluders(occluders);
@@ -832,6 +881,7 @@ mod tests {
                                         }
                                     }
                                     packs += 1;
+                                    culled_packs[cull as usize] += 1;
                                 } else {
                                     for (h, stream) in pts.iter().zip(&mut packed) {
                                         shade_quads(&shader, quads, h, stream, &mut b, &mut pb);
@@ -881,11 +931,12 @@ mod tests {
             }
         }
         eprintln!(
-            "packed quad lights: {packs} packs, {points_compared} points, {lit_samples} lit sums"
+            "packed quad lights: {packs} packs ({culled_packs:?} without and with the pack's \
+             sphere cull), {points_compared} points, {lit_samples} lit sums"
         );
         assert!(
-            packs > 2000 && lit_samples > 5_000,
-            "{packs} packs, {lit_samples} lit"
+            culled_packs.iter().all(|&p| p > 1000) && lit_samples > 5_000,
+            "{culled_packs:?} packs, {lit_samples} lit"
         );
     }
 

@@ -33,7 +33,7 @@ use crate::simd::Packet;
 use crate::simd::direct_light::QuadLight;
 use crate::simd::glass_shadow::{SphereRoots, crossings_of_roots, meets_of_roots, settle_gathered};
 use crate::simd::kernels::RayLanes;
-use crate::simd::kernels::{sphere_roots, sphere_roots_for};
+use crate::simd::kernels::{sphere_lanes, sphere_roots, sphere_roots_for};
 use crate::simd::lanes3::V3;
 use crate::simd::quad_samples::{OriginBox, Unpacked3};
 use crate::simd::sphere_clearance::{F64_SLACK, clearance, gamma64};
@@ -158,7 +158,28 @@ pub struct LaneOccluders {
     /// Where the sphere set is split: the opaque spheres, the glass spheres and their
     /// transmission (`SphereShadow::Glass`).
     glass: Option<GlassSet>,
+    /// `sphere_bits(None)`: every sphere, made once.
+    every: SphereBits,
+    /// Whether a pack of shading points culls its spheres (`GroupCull`) before the
+    /// lane sphere test ([`PACK_SPHERE_CULL`] unless a test sets it).
+    pack_sphere_cull: bool,
 }
+
+/// Whether a pack of shading points (`area_light::shade_quads_packed`) culls the
+/// spheres near its segments ([`GroupCull`], per point) before the lane sphere test:
+/// off where a 16-lane value is one register (AVX-512), as the point lights' cull
+/// (`point_shadow::SPHERE_CULL`). The answers are the same either way (a culled sphere
+/// is one the lane test finds no root on); the tests settle both.
+///
+/// Why: a pack holds 4 points of 4 samples (dof_area); per point the cull checked its
+/// two origins against the group's box (`GroupCull::bits`) and united the bits, and
+/// per 16 hits it built a `QuadCull` (f64, then `clear` per sphere): perf, dof_area
+/// 960x720, 1 thread, AVX-512, the per-point part ~14 % of `shade_quads_packed`'s
+/// samples (~6 % of the frame), `QuadCull::new` and `clear` another ~4 % of the frame,
+/// against three sphere tests per pack in one register each (most of them leaving out
+/// the square root and two divisions: no lane with a real discriminant,
+/// `settle_near_spheres`).
+pub const PACK_SPHERE_CULL: bool = !cfg!(target_feature = "avx512f");
 
 /// Per sphere of the glass set's opaque and glass lists, its index in `spheres` (the
 /// lists are parts of it), so that each sphere is tested once per group; empty lists
@@ -548,7 +569,7 @@ impl LaneOccluders {
         let spheres = tiny.spheres().to_vec();
         let glass_index = glass_index(&spheres, glass.as_ref());
         static NEXT: AtomicU64 = AtomicU64::new(1);
-        Some(LaneOccluders {
+        let mut occluders = LaneOccluders {
             id: NEXT.fetch_add(1, Ordering::Relaxed),
             triangles: tiny.triangles().to_vec(),
             planes,
@@ -557,7 +578,33 @@ impl LaneOccluders {
             spheres,
             glass_index,
             glass,
-        })
+            every: SphereBits {
+                all: 0,
+                opaque: 0,
+                glass: 0,
+            },
+            pack_sphere_cull: PACK_SPHERE_CULL,
+        };
+        occluders.every = occluders.sphere_bits(None);
+        Some(occluders)
+    }
+
+    /// The same occluders with a pack's sphere cull on or off (the answers are the
+    /// same either way; the tests settle both).
+    #[cfg(test)]
+    pub fn with_pack_sphere_cull(mut self, on: bool) -> LaneOccluders {
+        self.pack_sphere_cull = on;
+        self
+    }
+
+    /// Whether a pack of shading points culls its spheres ([`PACK_SPHERE_CULL`]).
+    pub fn pack_sphere_cull(&self) -> bool {
+        self.pack_sphere_cull
+    }
+
+    /// Every sphere: `sphere_bits(None)`, made once.
+    pub fn every_sphere(&self) -> SphereBits {
+        self.every
     }
 
     /// The spheres not clear of the segments `cull` covers (every sphere where
@@ -884,6 +931,23 @@ pub(crate) fn settle_near_spheres(
     index: &(Vec<Option<usize>>, Vec<Option<usize>>),
     near_lists: impl FnOnce(&GlassSet) -> (u32, u32),
 ) -> LaneSettled {
+    let Some(set) = glass else {
+        // Every sphere blocks: no roots kept, so each lane test leaves out its square
+        // root and two divisions where no lane of `rest` has a real discriminant
+        // (`sphere_lanes`: bits equal to `meets_of_roots` of `sphere_roots` there).
+        let mut sph = 0u32;
+        for (k, &(center, radius)) in spheres.iter().enumerate() {
+            let rest = open & !sph;
+            if all >> (k & 31) & 1 == 1 && rest != 0 {
+                sph |= sphere_lanes(lanes, center, radius, tmax, rest).1;
+            }
+        }
+        return LaneSettled {
+            pass: live & !(tri | sph),
+            factor: V3::splat(Vec3::ONE),
+            settled: 0,
+        };
+    };
     let mut roots: [Option<SphereRoots<Packet>>; TINY_MAX_PRIMITIVES] = [None; TINY_MAX_PRIMITIVES];
     let mut sph = 0u32;
     // Every lane read below is one of `open` (`rest`, `sph` and the glass settlement's
@@ -907,13 +971,6 @@ pub(crate) fn settle_near_spheres(
             }
         }
     }
-    let Some(set) = glass else {
-        return LaneSettled {
-            pass: live & !(tri | sph),
-            factor: V3::splat(Vec3::ONE),
-            settled: 0,
-        };
-    };
     if sph == 0 {
         return LaneSettled {
             pass: live & !tri,
