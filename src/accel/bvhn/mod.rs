@@ -40,6 +40,7 @@ mod packet;
 mod packet_bounds;
 mod packet_setup;
 mod qnode;
+mod ray_sort;
 mod single;
 mod sorted;
 mod stack;
