@@ -40,7 +40,6 @@ mod packet;
 mod packet_bounds;
 mod packet_setup;
 mod qnode;
-mod ray_sort;
 mod single;
 mod sorted;
 mod stack;

@@ -28,9 +28,21 @@
 //!   21-22; a branch-free append (every child's slot written, its count advanced by the
 //!   mask bit) 6.16-6.33 diffuse but 17-20 primary. The two passes: 7.58-7.69 diffuse,
 //!   26.4-26.6 primary (separate runs on a quiet machine).
-//! - Sorting a bin's rays by origin or direction keys was not tried on purpose: which
-//!   rays enter a node does not depend on their order in the list, and a bin of a band
-//!   (about a thousand rays) fits in L2, so the order only moves gathers within L2.
+//! - Sorting a bin's rays by origin (issue 12, big22, 2026-11-29; commit 45deb89 on
+//!   branch big22, `ray_sort.rs`): each octant's rays in the Morton order of their
+//!   origins in the batch's origin box (10 bits per axis; a three-pass 11-bit radix
+//!   sort of octant-and-code keys, inside the timed region), as Garanzha and Loop
+//!   (Eurographics 2010) and Moon et al. (TOG 2010) order rays. Same answers and
+//!   checksums. Which rays enter a node does not depend on their order in the list, so
+//!   node visits, tests and leaf tests are unchanged; only where a list's records lie
+//!   moves (a band's bin of about a thousand rays fits in L2 anyway). Measured at
+//!   10^6 (`bench --triangles 1000000 --threads 1 --reps 5 --modes bvh8-stream`,
+//!   AVX-512, load 6-9, 6 interleaved rounds, diffuse Mrays per CPU-second): session
+//!   base 2.88/2.34/2.49/2.85/2.69/2.24 (median 2.59), same binary unsorted 2.26/2.54/
+//!   2.58/2.31/2.76/2.18 (2.42), sorted 2.77/2.05/2.12/2.89/2.52/2.00 (2.32); and
+//!   `stream_profile 1000000 bvh8-stream diffuse 7`, 4 interleaved rounds, unsorted
+//!   2.97/2.73/2.88/2.78 (2.83), sorted 2.70/2.71/2.15/2.44 (2.57): lower in every
+//!   round (the sort's cost, nothing gained). Removed.
 //! - Two rays per 512-bit register in the node test (8 children x 2 rays), not tried:
 //!   the node-test loop is 23-24 % of `stream`'s samples (bunny and 10^6 triangles,
 //!   AVX-512, `perf annotate`), 28 instructions a ray, its 11 ray values broadcast
@@ -48,7 +60,6 @@
 //! lies above its parent's block (the stack is LIFO, so everything there is finished).
 
 use super::node::{NodeWidth, WideNode, Width, is_leaf};
-use super::ray_sort::RaySort;
 use super::stack::insert_far_to_near;
 use super::tree::Bvh;
 use crate::accel::Primitives;
@@ -133,13 +144,6 @@ struct Scratch {
     /// The child mask of each ray of the list at hand.
     masks: Vec<u32>,
     stack: Vec<Entry>,
-    sort: RaySort,
-}
-
-/// Experiment switch: `PR_STREAM_SORT=1` bins with `ray_sort.rs`.
-fn sort_rays() -> bool {
-    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| std::env::var_os("PR_STREAM_SORT").is_some_and(|v| v == "1"))
 }
 
 thread_local! {
@@ -170,9 +174,6 @@ impl Scratch {
         // the cache there. An earlier form that built the queries in their bin slots
         // (after a pre-fill, still through the `RayQuery::new` call) measured the same
         // as the caller-order one: 6.79-7.22 against 6.68-7.05 Mrays/s.
-        if sort_rays() {
-            return self.bin_sorted(rays, fma, root);
-        }
         let keys = &mut self.order;
         keys.clear();
         let mut count = [0u32; 10];
@@ -190,38 +191,7 @@ impl Scratch {
         }
         let n = count[8] as usize;
         let mut next = count;
-        self.size(n);
-        for (i, (r, &k)) in rays.iter().zip(self.order.iter()).enumerate() {
-            if k == 8 {
-                continue;
-            }
-            let s = next[k as usize] as usize;
-            next[k as usize] += 1;
-            self.index[s] = i as u32;
-            (self.rays[s], self.queries[s]) = Self::record(r, fma, root);
-        }
-        count[..9].try_into().expect("nine bin starts")
-    }
-
-    /// [`bin`](Self::bin) with each bin's rays in the order of their origins' Morton
-    /// codes (`ray_sort.rs`) instead of the caller's.
-    fn bin_sorted(&mut self, rays: &[Ray], fma: bool, root: &[[f32; 3]; 2]) -> [u32; 9] {
-        let mut index = std::mem::take(&mut self.index);
-        let starts = self.sort.sort(rays, &mut index);
-        self.index = index;
-        let n = self.index.len();
-        self.size(n);
-        for s in 0..n {
-            let r = &rays[self.index[s] as usize];
-            (self.rays[s], self.queries[s]) = Self::record(r, fma, root);
-        }
-        starts
-    }
-
-    /// Sizes the per-ray buffers for `n` binned rays: `rays` and `queries` grown when
-    /// short, never refilled (every slot below `n` is written by the binning), `index`
-    /// `n` long, `best` and `done` reset.
-    fn size(&mut self, n: usize) {
+        // Grown when short, never refilled: every slot below `n` is written below.
         if self.rays.len() < n {
             self.rays.resize(n, StreamRay::default());
         }
@@ -230,43 +200,47 @@ impl Scratch {
             self.queries.resize(n, Self::placeholder());
         }
         self.queries.truncate(n);
+        self.index.clear();
         self.index.resize(n, 0);
+        for (i, (r, &k)) in rays.iter().zip(keys.iter()).enumerate() {
+            if k == 8 {
+                continue;
+            }
+            let s = next[k as usize] as usize;
+            next[k as usize] += 1;
+            self.index[s] = i as u32;
+            let q = RayQuery::of_valid(r);
+            self.rays[s] = if fma {
+                let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
+                let kz = q.kz;
+                let slack = t_slack(root[0][kz], root[1][kz], q.origin[kz], q.sz);
+                StreamRay {
+                    a: x.map(|x| x.rn),
+                    tmin: widened_tmin(q.tmin, slack),
+                    b: x.map(|x| x.on),
+                    tmax: widened_tmax(q.tmax, slack),
+                    c: x.map(|x| x.rf),
+                    slack,
+                    e: x.map(|x| x.of),
+                    ..StreamRay::default()
+                }
+            } else {
+                StreamRay {
+                    a: q.origin.to_array(),
+                    tmin: q.tmin,
+                    b: q.inv_dir.to_array(),
+                    tmax: q.tmax * ROBUST_FAR_SCALE,
+                    c: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
+                    ..StreamRay::default()
+                }
+            };
+            self.queries[s] = q;
+        }
         self.best.clear();
         self.best.resize(n, None);
         self.done.clear();
         self.done.resize(n, false);
-    }
-
-    /// The node-test record and the query of valid ray `r` (`RayQuery::of_valid`,
-    /// inlined).
-    #[inline(always)]
-    fn record(r: &Ray, fma: bool, root: &[[f32; 3]; 2]) -> (StreamRay, RayQuery) {
-        let q = RayQuery::of_valid(r);
-        let rec = if fma {
-            let x = fma_axes(q.origin.to_array(), q.dir.to_array(), q.inv_dir.to_array());
-            let kz = q.kz;
-            let slack = t_slack(root[0][kz], root[1][kz], q.origin[kz], q.sz);
-            StreamRay {
-                a: x.map(|x| x.rn),
-                tmin: widened_tmin(q.tmin, slack),
-                b: x.map(|x| x.on),
-                tmax: widened_tmax(q.tmax, slack),
-                c: x.map(|x| x.rf),
-                slack,
-                e: x.map(|x| x.of),
-                ..StreamRay::default()
-            }
-        } else {
-            StreamRay {
-                a: q.origin.to_array(),
-                tmin: q.tmin,
-                b: q.inv_dir.to_array(),
-                tmax: q.tmax * ROBUST_FAR_SCALE,
-                c: (q.inv_dir * ROBUST_FAR_SCALE).to_array(),
-                ..StreamRay::default()
-            }
-        };
-        (rec, q)
+        count[..9].try_into().expect("nine bin starts")
     }
 
     /// Prefetches the query of binned ray `id` (its two cache lines).
