@@ -28,9 +28,21 @@
 //!   21-22; a branch-free append (every child's slot written, its count advanced by the
 //!   mask bit) 6.16-6.33 diffuse but 17-20 primary. The two passes: 7.58-7.69 diffuse,
 //!   26.4-26.6 primary (separate runs on a quiet machine).
-//! - Sorting a bin's rays by origin or direction keys was not tried on purpose: which
-//!   rays enter a node does not depend on their order in the list, and a bin of a band
-//!   (about a thousand rays) fits in L2, so the order only moves gathers within L2.
+//! - Sorting a bin's rays by origin (issue 12, big22, 2026-11-29; commit 45deb89 on
+//!   branch big22, `ray_sort.rs`): each octant's rays in the Morton order of their
+//!   origins in the batch's origin box (10 bits per axis; a three-pass 11-bit radix
+//!   sort of octant-and-code keys, inside the timed region), as Garanzha and Loop
+//!   (Eurographics 2010) and Moon et al. (TOG 2010) order rays. Same answers and
+//!   checksums. Which rays enter a node does not depend on their order in the list, so
+//!   node visits, tests and leaf tests are unchanged; only where a list's records lie
+//!   moves (a band's bin of about a thousand rays fits in L2 anyway). Measured at
+//!   10^6 (`bench --triangles 1000000 --threads 1 --reps 5 --modes bvh8-stream`,
+//!   AVX-512, load 6-9, 6 interleaved rounds, diffuse Mrays per CPU-second): session
+//!   base 2.88/2.34/2.49/2.85/2.69/2.24 (median 2.59), same binary unsorted 2.26/2.54/
+//!   2.58/2.31/2.76/2.18 (2.42), sorted 2.77/2.05/2.12/2.89/2.52/2.00 (2.32); and
+//!   `stream_profile 1000000 bvh8-stream diffuse 7`, 4 interleaved rounds, unsorted
+//!   2.97/2.73/2.88/2.78 (2.83), sorted 2.70/2.71/2.15/2.44 (2.57): lower in every
+//!   round (the sort's cost, nothing gained). Removed.
 //! - Two rays per 512-bit register in the node test (8 children x 2 rays), not tried:
 //!   the node-test loop is 23-24 % of `stream`'s samples (bunny and 10^6 triangles,
 //!   AVX-512, `perf annotate`), 28 instructions a ray, its 11 ray values broadcast
