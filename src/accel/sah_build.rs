@@ -67,23 +67,6 @@
 //! Not split by change (no time for single-change builds): in perf the sampled
 //! binning went from 4.7 to 2.3 % of the samples; the other shares moved within the
 //! noise of single profiles.
-//!
-//! Issue 12, helper bld22, 2026-11-29 (AVX-512 host, load 7-10 throughout: wall times
-//! 3-10x the quiet ones, so CPU ms per build is the figure, and it is noisy too).
-//! perf of `build_time 10000000 2 1`: the kernel zeroing fresh pages 29 % of the
-//! samples (15 % in the root's partition into the fresh scratch array, 7.6 % making
-//! the references, 3.6 % the collapse's node array), `partition_on_axis` 18.8 %, the
-//! sweep 8.4 %, paired binning 6.8 %. This host's L3 is 260 MB (shared), so the 64 MB
-//! of a 10^6 build's two arrays can stay in it and the 640 MB of a 10^7 build cannot:
-//! the top levels' partitions run from memory. Built: nodes of [`STREAM_NODE`] and
-//! more partition with non-temporal stores (no read of each destination line before
-//! it is written), and the root's bounds are folded as the references are made
-//! ([`make_refs`]; one read of the whole array fewer). Same trees at 10^6 and 10^7.
-//! A first-touch test of 320 MB (C, `mmap` + `madvise`, three times each): 4 KiB
-//! pages 329-367 ms, huge pages 161-163 ms, huge pages with `MADV_POPULATE_WRITE`
-//! 89-112 ms to populate plus 103-121 ms to write: populating first does not pay for
-//! arrays that get huge pages, so it was not built (the first touch of memory the VM
-//! has never used took 2,866 ms: a host-side cost no advice avoids).
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
@@ -92,7 +75,6 @@ use crate::simd::bin_box::BinBox;
 use crate::simd::bin_index;
 use crate::simd::box_areas;
 use crate::simd::prefetch::prefetch;
-use crate::simd::stream_store;
 use glam::{BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -609,7 +591,24 @@ fn build_tree_sampling<P: Primitives>(
         u32::try_from(n).is_ok(),
         "at most 2^32 - 1 primitives per structure"
     );
-    let (mut refs, nb) = make_refs(prims);
+    // Written in full here, so not zeroed first: `calloc` clears a block recycled from
+    // the heap with `memset` (the 32 MB arrays of a 10^6 build are; `memset` was 1.5 %
+    // of a 1-thread build's perf samples, `build_time 1000000 5 1`, for both arrays).
+    let mut refs = Vec::<PrimRef>::with_capacity(n);
+    advise_huge_pages(refs.as_mut_ptr().cast(), n * std::mem::size_of::<PrimRef>());
+    refs.spare_capacity_mut()[..n]
+        .par_chunks_mut(PARALLEL_THRESHOLD)
+        .enumerate()
+        .for_each(|(c, chunk)| {
+            let first = c * PARALLEL_THRESHOLD;
+            for (k, r) in chunk.iter_mut().enumerate() {
+                let i = first + k;
+                r.write(PrimRef::new(prims.bounds(i), i as u32));
+            }
+        });
+    // SAFETY: the capacity is `n` (`with_capacity`'s guarantee) and the loop above
+    // wrote each of the first `n` slots.
+    unsafe { refs.set_len(n) };
     let mut ids = vec![0u32; n];
     if n == 0 {
         return (None, ids, SpareRefs(refs));
@@ -622,44 +621,9 @@ fn build_tree_sampling<P: Primitives>(
         block_shift: bs.is_power_of_two().then(|| bs.trailing_zeros()),
         sample_from: sample_from.max(opts.max_leaf + 1),
     };
+    let nb = node_bounds(&refs);
     let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb, true);
     (Some(root), ids, SpareRefs(refs))
-}
-
-/// The primitives' references, in order, and the root's bounds, folded as the
-/// references are made, in the chunks and order of [`node_bounds`] (so the same
-/// values; with NaN among them, as long as rayon splits both alike, as it does at one
-/// thread): the separate pass read the whole array back, 320 MB from memory at 10^7
-/// triangles.
-fn make_refs<P: Primitives>(prims: &P) -> (Vec<PrimRef>, NodeBounds) {
-    let n = prims.count();
-    // Written in full here, so not zeroed first: `calloc` clears a block recycled from
-    // the heap with `memset` (the 32 MB arrays of a 10^6 build are; `memset` was 1.5 %
-    // of a 1-thread build's perf samples, `build_time 1000000 5 1`, for both arrays).
-    let mut refs = Vec::<PrimRef>::with_capacity(n);
-    advise_huge_pages(refs.as_mut_ptr().cast(), n * std::mem::size_of::<PrimRef>());
-    let make = |first: usize, chunk: &mut [MaybeUninit<PrimRef>]| {
-        let mut acc = NodeBounds::EMPTY;
-        for (k, r) in chunk.iter_mut().enumerate() {
-            let i = first + k;
-            acc = node_bounds_add(acc, r.write(PrimRef::new(prims.bounds(i), i as u32)));
-        }
-        acc
-    };
-    let slots = &mut refs.spare_capacity_mut()[..n];
-    let nb = if n >= PARALLEL_NODE {
-        slots
-            .par_chunks_mut(PARALLEL_THRESHOLD)
-            .enumerate()
-            .map(|(c, chunk)| make(c * PARALLEL_THRESHOLD, chunk))
-            .reduce(|| NodeBounds::EMPTY, |a, b| a.union(&b))
-    } else {
-        make(0, slots)
-    };
-    // SAFETY: the capacity is `n` (`with_capacity`'s guarantee) and the loop above
-    // wrote each of the first `n` slots.
-    unsafe { refs.set_len(n) };
-    (refs, nb)
 }
 
 /// `n` zeroed references, allocated without being written (`calloc`: fresh pages from
@@ -734,17 +698,13 @@ fn advise_huge_pages(ptr: *mut u8, len: usize) {
     let _ = (ptr, len);
 }
 
-/// `acc` grown by the box and the centroid of `r`.
-#[inline(always)]
-fn node_bounds_add(mut acc: NodeBounds, r: &PrimRef) -> NodeBounds {
-    acc.bounds.grow(&r.bounds());
-    acc.centroids.grow_point(r.centroid());
-    acc
-}
-
 /// Bounds and centroid bounds of `refs`.
 fn node_bounds(refs: &[PrimRef]) -> NodeBounds {
-    let fold = node_bounds_add;
+    let fold = |mut acc: NodeBounds, r: &PrimRef| {
+        acc.bounds.grow(&r.bounds());
+        acc.centroids.grow_point(r.centroid());
+        acc
+    };
     if refs.len() >= PARALLEL_NODE {
         refs.par_chunks(PARALLEL_THRESHOLD)
             .map(|c| c.iter().fold(NodeBounds::EMPTY, fold))
@@ -1258,12 +1218,8 @@ impl SideBounds {
 /// forwards and from `right_end` backwards together: for the serial partition both
 /// are `dst`, with `right_end = dst + n`; for a chunk of the parallel one, its two
 /// parts, exactly as long as its two sides.
-///
-/// With `STREAM` the references are written with non-temporal stores
-/// ([`stream_store::stream_pair`], fenced at the end): for nodes of at least
-/// [`STREAM_NODE`] references, whose destination is not in cache anyway.
 #[inline(always)]
-unsafe fn partition_kernel<const AXIS: usize, const STREAM: bool>(
+unsafe fn partition_kernel<const AXIS: usize>(
     src: &[PrimRef],
     left: *mut PrimRef,
     right_end: *mut PrimRef,
@@ -1282,18 +1238,10 @@ unsafe fn partition_kernel<const AXIS: usize, const STREAM: bool>(
         } else {
             unsafe { right_end.sub(nr + 1) }
         };
-        if STREAM {
-            // SAFETY: as above; a `PrimRef` is two 16-byte aligned `Vec4`s.
-            unsafe { stream_store::stream_pair(at.cast::<Vec4>(), r.min, r.max) };
-        } else {
-            unsafe { at.write(*r) };
-        }
+        unsafe { at.write(*r) };
         nl += usize::from(is_left);
         nr += usize::from(!is_left);
         sides.add(k, p.bin, c);
-    }
-    if STREAM {
-        stream_store::fence();
     }
     let (l, r) = sides.boxes();
     (nl, l, r)
@@ -1309,17 +1257,13 @@ unsafe fn partition_on_axis(
     right_end: *mut PrimRef,
     axis: usize,
     p: Plane,
-    stream: bool,
 ) -> (usize, BBox, BBox) {
     // SAFETY: forwarded from the caller.
     unsafe {
-        match (axis, stream) {
-            (0, false) => partition_kernel::<0, false>(src, left, right_end, p),
-            (1, false) => partition_kernel::<1, false>(src, left, right_end, p),
-            (_, false) => partition_kernel::<2, false>(src, left, right_end, p),
-            (0, true) => partition_kernel::<0, true>(src, left, right_end, p),
-            (1, true) => partition_kernel::<1, true>(src, left, right_end, p),
-            (_, true) => partition_kernel::<2, true>(src, left, right_end, p),
+        match axis {
+            0 => partition_kernel::<0>(src, left, right_end, p),
+            1 => partition_kernel::<1>(src, left, right_end, p),
+            _ => partition_kernel::<2>(src, left, right_end, p),
         }
     }
 }
@@ -1338,18 +1282,6 @@ fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, 
     let (l, r) = sides.boxes();
     (nl, l, r)
 }
-
-/// Nodes of at least this many references partition with non-temporal stores: their
-/// two arrays (64 MiB and more) are read back from memory by the next level, not from
-/// cache, so a plain store's read of its line first is wasted traffic.
-///
-/// Measured (2026-11-29, helper bld22, load 7-9, 1 thread, `build_time N 2|3 1`, CPU ms
-/// median per build, one binary with the threshold read from the environment, rounds
-/// interleaved): 10^7, two rounds, none 5,353 / 5,847, from 2^21 4,850 / 5,195, from
-/// 2^18 4,819 / 5,000 (trees the same); 10^6, three rounds, none 479 / 460 / 417, from
-/// 2^18 478 / 418 / 431, from 2^16 409 / 434 / 411: no loss where the arrays fit in
-/// this host's L3 (260 MB, shared), so from 2^18 (8 MB arrays, four times L2).
-const STREAM_NODE: usize = 1 << 18;
 
 /// Writes the references of `src` whose centroid bin is below the split bin to the
 /// front of `dst` in order, the others to the back in reverse order, and gathers both
@@ -1380,7 +1312,7 @@ fn partition(src: &[PrimRef], dst: &mut [PrimRef], cb: &BBox, s: Split) -> (usiz
     let left = dst.as_mut_ptr();
     // SAFETY: `dst` holds `n` references: the lefts fill it from the front, the rights
     // from the back, `n` in all.
-    unsafe { partition_on_axis(src, left, left.add(n), s.axis, p, n >= STREAM_NODE) }
+    unsafe { partition_on_axis(src, left, left.add(n), s.axis, p) }
 }
 
 /// The parallel partition: the same output as the serial loop of [`partition`].
@@ -1392,7 +1324,6 @@ fn partition_parallel(
     s: Split,
 ) -> (usize, BBox, BBox) {
     let p = Plane::new(lo, scale, s);
-    let stream = src.len() >= STREAM_NODE;
     // Pass 1: per chunk, the left count and both sides' centroid bounds.
     let counts: Vec<(usize, BBox, BBox)> = src
         .par_chunks(PARALLEL_THRESHOLD)
@@ -1426,7 +1357,7 @@ fn partition_parallel(
             // SAFETY: pass 1 counted `l.len()` lefts and `r.len()` rights in this chunk
             // with the same test, so the kernel writes exactly `l` and `r`.
             let (k, _, _) =
-                unsafe { partition_on_axis(chunk, l.as_mut_ptr(), right_end, s.axis, p, stream) };
+                unsafe { partition_on_axis(chunk, l.as_mut_ptr(), right_end, s.axis, p) };
             assert_eq!(k, l.len(), "the two passes of the partition agree");
         });
     (mid, left, right)
@@ -1629,10 +1560,13 @@ mod tests {
         assert_eq!(box_bits(&c.right), box_bits(&node_bounds(&dst[m..]).bounds));
     }
 
-    /// [`refs_3d`] with a NaN box at 5, a far box at 6 and an infinite one at 7; and
-    /// the far box.
-    fn odd_refs(n: usize) -> (Vec<PrimRef>, Aabb) {
-        let mut src = refs_3d(n);
+    /// The partition against a plain reference: the references [`bins_of`] puts below
+    /// the split bin, in input order, then the others in reverse order, and the
+    /// centroid bounds of each side folded one by one; for every plane of every axis,
+    /// with a NaN, a far and an infinite centroid among the references.
+    #[test]
+    fn partition_matches_a_plain_reference() {
+        let mut src = refs_3d(777);
         let nan = Aabb {
             min: glam::Vec3::splat(f32::NAN),
             max: glam::Vec3::splat(f32::NAN),
@@ -1645,16 +1579,6 @@ mod tests {
             max: glam::Vec3::splat(f32::INFINITY),
         };
         src[7] = PrimRef::new(inf, 7);
-        (src, far)
-    }
-
-    /// The partition against a plain reference: the references [`bins_of`] puts below
-    /// the split bin, in input order, then the others in reverse order, and the
-    /// centroid bounds of each side folded one by one; for every plane of every axis,
-    /// with a NaN, a far and an infinite centroid among the references.
-    #[test]
-    fn partition_matches_a_plain_reference() {
-        let (src, far) = odd_refs(777);
         // The node's bounds from the ordinary references: the others fall outside.
         let nb = node_bounds(&src[8..]);
         let bins_n = 16;
@@ -1686,86 +1610,6 @@ mod tests {
                 assert_eq!(box_bits(&lc), box_bits(&cb(&want[..m])));
                 assert_eq!(box_bits(&rc), box_bits(&cb(&want[m..])));
             }
-        }
-    }
-
-    /// The partition with non-temporal stores (nodes of [`STREAM_NODE`] and more)
-    /// against the plain one on the same input, NaN, infinite and far boxes included:
-    /// the same references in the same places, the same count and side bounds, into
-    /// destinations that start on and off a 64-byte line.
-    #[test]
-    fn streamed_partition_matches_the_plain_one() {
-        let (src, far) = odd_refs(3001);
-        let nb = node_bounds(&src[8..]);
-        let bins_n = 16;
-        let scale = bin_scale(&nb.centroids, bins_n);
-        let n = src.len();
-        for axis in 0..3 {
-            for bin in [1, 7, 15] {
-                let s = Split {
-                    axis,
-                    bin,
-                    bins: bins_n,
-                    cost: 0.0,
-                };
-                let p = Plane::new(nb.centroids.min, scale, s);
-                let mut plain = vec![PrimRef::new(far, u32::MAX); n + 1];
-                let mut streamed = plain.clone();
-                for first in [0, 1] {
-                    let run = |dst: &mut [PrimRef], stream: bool| {
-                        let left = dst[first..].as_mut_ptr();
-                        // SAFETY: `dst[first..first + n]` holds `n` references.
-                        unsafe { partition_on_axis(&src, left, left.add(n), axis, p, stream) }
-                    };
-                    let (m0, l0, r0) = run(&mut plain, false);
-                    let (m1, l1, r1) = run(&mut streamed, true);
-                    assert_eq!(m1, m0, "axis {axis} bin {bin}");
-                    assert!(m0 > 0 && m0 < n, "axis {axis} bin {bin}: both sides used");
-                    assert_eq!(bits(&streamed), bits(&plain), "axis {axis} bin {bin}");
-                    assert_eq!(box_bits(&l1), box_bits(&l0));
-                    assert_eq!(box_bits(&r1), box_bits(&r0));
-                }
-            }
-        }
-    }
-
-    /// The root's bounds folded while the references are made against
-    /// [`node_bounds`] of the made references, and the references against
-    /// [`PrimRef::new`], below and above [`PARALLEL_NODE`], with NaN, infinite and
-    /// zero-area triangles among them.
-    #[test]
-    fn references_made_with_their_bounds_match_a_separate_fold() {
-        use glam::Vec3;
-        for n in [1, 4000, PARALLEL_NODE + 3001] {
-            let mut corners: Vec<[Vec3; 3]> = (0..n)
-                .map(|i| {
-                    let a = Vec3::new((i % 251) as f32, (i / 251) as f32 * 0.5, -(i as f32));
-                    [a, a + Vec3::X, a + Vec3::new(0.0, 2.0, 1.0)]
-                })
-                .collect();
-            for (i, t) in corners.iter_mut().enumerate().step_by(97) {
-                t[i % 3] = match i % 4 {
-                    0 => Vec3::NAN,
-                    1 => Vec3::splat(f32::INFINITY),
-                    2 => Vec3::new(f32::NEG_INFINITY, -0.0, f32::NAN),
-                    _ => t[(i + 1) % 3],
-                };
-            }
-            let tris = crate::accel::Triangles::from_corners(&corners);
-            // One thread: rayon then splits both folds alike (with NaN the order of
-            // the minimums and maximums decides the result).
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .build()
-                .unwrap();
-            let (refs, nb) = pool.install(|| make_refs(&tris));
-            let want: Vec<PrimRef> = (0..n)
-                .map(|i| PrimRef::new(tris.bounds(i), i as u32))
-                .collect();
-            assert_eq!(bits(&refs), bits(&want), "n {n}");
-            let fold = pool.install(|| node_bounds(&refs));
-            assert_eq!(box_bits(&nb.bounds), box_bits(&fold.bounds), "n {n}");
-            assert_eq!(box_bits(&nb.centroids), box_bits(&fold.centroids), "n {n}");
         }
     }
 

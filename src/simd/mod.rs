@@ -38,7 +38,6 @@ pub mod slab_fma;
 pub mod specular;
 pub mod sphere_clearance;
 pub mod splitmix;
-pub mod stream_store;
 pub mod surface;
 pub mod tiny;
 pub mod trig;
