@@ -67,6 +67,32 @@
 //! Not split by change (no time for single-change builds): in perf the sampled
 //! binning went from 4.7 to 2.3 % of the samples; the other shares moved within the
 //! noise of single profiles.
+//!
+//! Dead end, issue 12, helper bld22, 2026-11-29 (commit 19abce8 on branch `bld22`,
+//! reverted). perf of `build_time 10000000 2 1` (1 thread, load ~2.4): the kernel
+//! zeroing fresh pages 29 % of the samples (15 % in the root's partition into the
+//! fresh scratch array, 7.6 % making the references, 3.6 % the collapse's node array),
+//! `partition_on_axis` 18.8 %, the sweep 8.4 %, paired binning 6.8 %. This host's L3
+//! is 260 MB (shared), so a 10^6 build's two 32 MB arrays can stay in it and a 10^7
+//! build's 640 MB cannot. Tried together: nodes of at least 2^18 references
+//! partitioned with non-temporal stores (`movntps` through a new
+//! `simd/stream_store.rs`, `sfence` after the loop: no read of each destination line
+//! before it is written), and the root's bounds folded while the references are made
+//! (one read of the 320 MB array fewer at 10^7). Same trees and checksums, images
+//! identical (imgcheck, 30 images). Under load 7-10 (CPU ms per build, one binary
+//! with the threshold from the environment, `build_time 10000000 2 1`): no streaming
+//! 5,353 / 5,847, from 2^21 4,850 / 5,195, from 2^18 4,819 / 5,000; but interleaved
+//! against the starting build, 3 rounds of 2 builds, CPU ms medians 5,648 / 5,932 /
+//! 6,771 before against 5,317 / 6,732 / 6,590; 10^6, 6 rounds of 3, medians 465 / 456 /
+//! 400 / 389 / 472 / 433 before against 445 / 408 / 388 / 424 / 439 / 496. Quiet
+//! (load 1.1-2.1, 01:13-01:16 UTC), 10^7, 3 rounds of 2: wall ms medians 4,456 /
+//! 4,012 / 3,762 before against 4,410 / 4,158 / 3,891, CPU ms 4,532 / 4,207 / 3,953
+//! against 4,443 / 4,351 / 4,053: no win, so removed. A first-touch test of 320 MB
+//! (C, `mmap` + `madvise`, three times each): 4 KiB pages 329-367 ms, huge pages
+//! 161-163 ms, huge pages with `MADV_POPULATE_WRITE` 89-112 ms to populate plus
+//! 103-121 ms to write: populating first does not pay for arrays that get huge pages
+//! (and the first touch of memory this VM had never used took 2,866 ms, a host-side
+//! cost no advice avoids).
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
