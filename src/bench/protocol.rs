@@ -59,6 +59,30 @@ impl SecondaryLanes {
         packet.tmax[i] = self.tmax[k];
         packet.time[i] = 0.0;
     }
+
+    /// Every lane written into the same lane of `packet` (a block whose sixteen
+    /// pixels all have a ray): [`write`](Self::write) for each lane, as whole-array
+    /// copies.
+    #[inline(always)]
+    fn write_block(&self, packet: &mut RayPacket) {
+        (packet.origin, packet.dir) = (self.o, self.d);
+        (packet.tmin, packet.tmax, packet.time) = ([0.0; 16], self.tmax, [0.0; 16]);
+    }
+}
+
+/// Bits `c` of the ids of `row` that are a hit (not `u32::MAX`); a row of four (a
+/// whole block's) is compared as one fixed-length array.
+#[inline(always)]
+fn hit_bits(row: &[u32]) -> u32 {
+    let bits = |ids: &[u32]| {
+        ids.iter()
+            .enumerate()
+            .fold(0, |m, (c, &id)| m | u32::from(id != u32::MAX) << c)
+    };
+    match <&[u32; 4]>::try_from(row) {
+        Ok(four) => bits(four),
+        Err(_) => bits(row),
+    }
 }
 
 /// The fixed ray set over one mesh.
@@ -360,9 +384,7 @@ impl Protocol {
                             let mut hit = 0u32;
                             for r in 0..rows {
                                 let (i, l) = (((yb + r) * w + x0) as usize, local((x0, yb + r)));
-                                for (c, &id) in p.prim[i..i + cols].iter().enumerate() {
-                                    hit |= u32::from(id != u32::MAX) << (4 * r as usize + c);
-                                }
+                                hit |= hit_bits(&p.prim[i..i + cols]) << (4 * r);
                                 fill_row(t_band, l, cols, f32::NAN);
                                 if workload != Workload::Shadow {
                                     fill_row(prim_band, l, cols, u32::MAX);
@@ -375,6 +397,19 @@ impl Protocol {
                             }
                             self.camera.block_into(x0, yb, &mut camera);
                             let lanes = self.secondary_lanes(workload, (x0, yb), &camera, hit, p);
+                            // A block with sixteen rays starting a packet is copied in
+                            // whole and its answers written back by rows, as a primary
+                            // pass's whole blocks are (issue 12, pk22: the lane-by-lane
+                            // copy, its slots and the shadow answers written through
+                            // them were ~1/4 of the pass's closure, which was 28 % of a
+                            // bunny shadow pass, `perf record` of `examples/stream_profile
+                            // bunny.obj bvh8-packet shadow 100`).
+                            if hit == 0xffff && n % 16 == 0 && soa {
+                                lanes.write_block(&mut packets[n / 16]);
+                                blocks[n / 16] = Some(local((x0, yb)));
+                                n += 16;
+                                continue;
+                            }
                             let mut m = hit;
                             while m != 0 {
                                 let k = m.trailing_zeros() as usize;
@@ -401,8 +436,21 @@ impl Protocol {
                             if workload == Workload::Shadow {
                                 if soa {
                                     let bits = mode.occluded_packet_bits(&packets[b]);
-                                    for (k, &s) in slots.iter().enumerate() {
-                                        t_band[s] = if bits >> k & 1 == 1 { 1.0 } else { 0.0 };
+                                    let occ = |k: usize| f32::from(u8::from(bits >> k & 1 == 1));
+                                    if let Some(l) = blocks[b] {
+                                        for r in 0..4 {
+                                            let (row, k) = (l + r * w as usize, 4 * r);
+                                            t_band[row..row + 4].copy_from_slice(&[
+                                                occ(k),
+                                                occ(k + 1),
+                                                occ(k + 2),
+                                                occ(k + 3),
+                                            ]);
+                                        }
+                                    } else {
+                                        for (k, &s) in slots.iter().enumerate() {
+                                            t_band[s] = occ(k);
+                                        }
                                     }
                                 } else {
                                     mode.occluded(&rays[16 * b..16 * b + len], &mut occ[..len]);
@@ -634,6 +682,11 @@ mod tests {
                         (packet.tmin, packet.time) = ([f32::NAN; 16], [f32::NAN; 16]);
                         lanes.write(k, &mut packet, 15 - k);
                         assert_eq!(bits(&packet.ray(15 - k)), bits(&want));
+                        // and with the whole block, in its own lane
+                        let mut block = RayPacket::default();
+                        (block.tmin, block.time) = ([f32::NAN; 16], [f32::NAN; 16]);
+                        lanes.write_block(&mut block);
+                        assert_eq!(bits(&block.ray(k)), bits(&want));
                         checked += 1;
                     }
                 }

@@ -222,9 +222,6 @@ fn edge_lanes(
 /// packet group, in 32-byte halves, and read back whole.
 #[derive(Clone, Copy)]
 pub struct PacketShear<L: Lanes> {
-    /// The origin every lane shares, when they do (camera rays): the whole-packet
-    /// bounds then skip the origins' lane reductions.
-    pub shared_origin: [f32; 3],
     pub kx: usize,
     pub ky: usize,
     pub kz: usize,
@@ -241,7 +238,6 @@ impl<L: Lanes> PacketShear<L> {
     #[inline(always)]
     pub fn new(d: &[L; 3], inv_z: L, (kx, ky, kz): (usize, usize, usize)) -> Self {
         PacketShear {
-            shared_origin: [0.0; 3],
             kx,
             ky,
             kz,

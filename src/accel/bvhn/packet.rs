@@ -136,7 +136,7 @@ where
         }
     }
 
-    /// `shared`: every lane of `mask` starts at `p.shear.shared_origin`.
+    /// `shared`: every lane of `mask` starts at `p.first_origin()`.
     fn packet_closest_group<L: Lanes, R: LaneRays + ?Sized>(
         &self,
         p: &PacketRays<'_, L>,

@@ -2,7 +2,7 @@
 //! for every lane of a packet group.
 
 use super::node::EMPTY_CHILD;
-use super::packet_setup::PacketRays;
+use super::packet_setup::{PacketRays, far_plane, near_plane};
 use crate::geometry::ROBUST_FAR_SCALE;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::lane_ranges::lane_ranges;
@@ -49,8 +49,8 @@ pub(super) struct PacketBounds<NL: Lanes> {
     /// them (kept as lanes of both widths, as before, they cost 34 broadcasts and stores
     /// per packet group, most never read by a packet that misses the mesh).
     b: Interval,
-    near: [usize; 3],
-    far: [usize; 3],
+    /// The group's direction signs (`PacketRays::neg`).
+    neg: u32,
     enabled: bool,
     lanes: std::marker::PhantomData<NL>,
 }
@@ -108,8 +108,7 @@ impl<NL: Lanes> PacketBounds<NL> {
     ) -> Self {
         let mut b = PacketBounds {
             b: Interval::default(),
-            near: p.near,
-            far: p.far,
+            neg: p.neg,
             enabled: false,
             lanes: std::marker::PhantomData,
         };
@@ -125,7 +124,7 @@ impl<NL: Lanes> PacketBounds<NL> {
                 [tmax, inv[0], inv[1], inv[2]],
                 mask,
             );
-            (lo, hi, p.shear.shared_origin.map(|o| (o, o)))
+            (lo, hi, p.first_origin().map(|o| (o, o)))
         } else {
             let o = p.o();
             let (lo, hi) = lane_ranges(
@@ -159,7 +158,7 @@ impl<NL: Lanes> PacketBounds<NL> {
             enabled &= f_lo.is_finite() && f_hi.is_finite();
             // A positive reciprocal: distances grow with `p - o`, so the near distance
             // is smallest at the largest origin and the far one largest at the smallest.
-            let negative = p.near[a] >= 3;
+            let negative = p.neg >> a & 1 == 1;
             // The near reciprocal of least magnitude.
             let (o_near, o_far, i_near) = if negative {
                 (o_lo, o_hi, i_hi)
@@ -190,8 +189,8 @@ impl<NL: Lanes> PacketBounds<NL> {
                 .fold(0, |m, (c, &r)| m | u32::from(r != EMPTY_CHILD) << c);
         }
         self.b.enters(
-            self.near.map(|p| NL::load(&planes[p])),
-            self.far.map(|p| NL::load(&planes[p])),
+            [0, 1, 2].map(|a| NL::load(&planes[near_plane(self.neg, a)])),
+            [0, 1, 2].map(|a| NL::load(&planes[far_plane(self.neg, a)])),
             self.b.tmin,
         )
     }
@@ -221,9 +220,14 @@ impl<NL: Lanes> PacketBounds<NL> {
         // triangles are skipped by id anyway.
         let lo = [0, 1, 2].map(|a| v(0, a).minps(v(1, a)).minps(v(2, a)));
         let hi = [0, 1, 2].map(|a| v(0, a).maxps(v(1, a)).maxps(v(2, a)));
-        let plane = |p: usize| if p >= 3 { hi[p - 3] } else { lo[p] };
-        self.b
-            .enters(self.near.map(plane), self.far.map(plane), self.b.tri_tmin)
+        // Chosen per axis by the sign (kept in registers: taken by a plane index, the
+        // six bounds were stored to the stack and read back through it).
+        let bound = |a: usize, upper: bool| if upper { hi[a] } else { lo[a] };
+        self.b.enters(
+            [0, 1, 2].map(|a| bound(a, self.neg >> a & 1 == 1)),
+            [0, 1, 2].map(|a| bound(a, self.neg >> a & 1 == 0)),
+            self.b.tri_tmin,
+        )
     }
 }
 

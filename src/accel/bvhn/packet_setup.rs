@@ -21,9 +21,29 @@ pub(super) struct PacketRays<'a, L: Lanes> {
     /// [`child_test`](Self::child_test).
     neg_inv: [L; 3],
     neg_inv_far: [L; 3],
-    pub(super) near: [usize; 3],
-    pub(super) far: [usize; 3],
+    /// Bit `a` set: the direction is negative along axis `a`, so the rays enter a box
+    /// by its upper plane (see [`near_plane`]). One word, written and read whole: as
+    /// three `bool`s, written by byte stores before the call into the group's
+    /// traversal, the whole-packet bounds read them back with one 4-byte load, which
+    /// cannot be forwarded from the three stores (6 % of `packet_closest_group`'s
+    /// samples on the instruction after it, `perf annotate`, issue 12, pk22).
+    pub(super) neg: u32,
     pub(super) shear: PacketShear<L>,
+}
+
+/// The index in a node's six planes (lower x, y, z, then upper) of the plane that rays
+/// with direction sign `neg` enter axis `a` by. Computed where a plane is read rather
+/// than kept as an index: an index read from memory is bounds-checked at every read
+/// (six compares and branches per node and per leaf group of the packet kernels).
+#[inline(always)]
+pub(super) fn near_plane(neg: u32, a: usize) -> usize {
+    a + 3 * (neg >> a & 1) as usize
+}
+
+/// The plane rays with direction sign `neg` leave axis `a` by (see [`near_plane`]).
+#[inline(always)]
+pub(super) fn far_plane(neg: u32, a: usize) -> usize {
+    a + 3 * (!neg >> a & 1) as usize
 }
 
 impl<L: Lanes> PacketRays<'_, L> {
@@ -46,6 +66,21 @@ impl<L: Lanes> PacketRays<'_, L> {
     #[inline(always)]
     pub(super) fn tmax(&self) -> L {
         self.s.tmax
+    }
+
+    /// The first valid lane's origin: every lane's where the packet's origin is shared
+    /// (`PacketSetup::shared_origin`), for the whole-packet bounds.
+    ///
+    /// Read here from the lanes in place, where the bounds are built. Issue 12, pk22:
+    /// before, `group` read it from the lanes for every group (shared or not) and kept
+    /// it in the group's state, written as three 4-byte stores that the bounds read
+    /// back (after the call into the group's traversal) with an 8-byte load spanning two
+    /// of them, which cannot be forwarded and waited for the stores to reach the cache:
+    /// `perf annotate` of `examples/stream_profile bunny.obj bvh8-packet primary 100`
+    /// (AVX-512) put 4.4 % of `packet_closest_group`'s samples on the load after it.
+    #[inline(always)]
+    pub(super) fn first_origin(&self) -> [f32; 3] {
+        [0, 1, 2].map(|k| self.s.o[k].to_array().as_ref()[self.s.first])
     }
 
     /// Origins, directions and `tmin` as lanes, for scalar-leaf primitives' lane tests
@@ -86,9 +121,12 @@ impl<L: Lanes> PacketRays<'_, L> {
         let rel = |plane: usize, a: usize| self.s.o[a] - L::splat(p[plane][c]);
         let d = |plane: usize, a: usize| rel(plane, a) * self.neg_inv[a];
         let f = |plane: usize, a: usize| rel(plane, a) * self.neg_inv_far[a];
-        let enter = d(self.near[0], 0)
-            .maxps(d(self.near[1], 1).maxps(d(self.near[2], 2).maxps(self.s.tmin)));
-        let exit = f(self.far[0], 0).minps(f(self.far[1], 1).minps(f(self.far[2], 2).minps(tcull)));
+        let (near, far) = (
+            |a: usize| near_plane(self.neg, a),
+            |a: usize| far_plane(self.neg, a),
+        );
+        let enter = d(near(0), 0).maxps(d(near(1), 1).maxps(d(near(2), 2).maxps(self.s.tmin)));
+        let exit = f(far(0), 0).minps(f(far(1), 1).minps(f(far(2), 2).minps(tcull)));
         // Tried, no win (issue 12, pk17): a lane that misses the box given entry NaN
         // (`select(hit, enter, NaN)`), so that the active mask at the pop counts only
         // the lanes that entered the subtree, as Embree's hybrid traversal does
@@ -250,24 +288,12 @@ impl<L: Lanes> PacketSetup<L> {
         // `1 / d[kz]`, the same division as `inv[kz]` (one fewer per group on the
         // setup's critical path).
         let sz = self.inv[kz];
-        let near = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { a + 3 } else { a });
-        // The first valid lane's origin, read from the lanes (each component on its
-        // own): the origin kept as three `f32` fields, written by three 4-byte stores
-        // and copied here by an 8-byte load that spanned two of them, waited for the
-        // stores to reach the cache (`perf annotate` of `examples/stream_profile
-        // bunny.obj bvh8-packet primary 80`, AVX-512: 4.7 % of `packet_closest`'s
-        // samples on that load).
-        let shared_origin = [0, 1, 2].map(|k| self.o[k].to_array().as_ref()[self.first]);
         PacketRays {
             s: self,
             neg_inv: self.inv.map(|x| L::splat(-1.0) * x),
             neg_inv_far: self.inv.map(|x| x * L::splat(-ROBUST_FAR_SCALE)),
-            near,
-            far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
-            shear: PacketShear {
-                shared_origin,
-                ..PacketShear::new(&self.d, sz, (kx, ky, kz))
-            },
+            neg: octant,
+            shear: PacketShear::new(&self.d, sz, (kx, ky, kz)),
         }
     }
 }
