@@ -448,9 +448,6 @@ mod tests {
         }
     }
 
-    /// [`block_sums`] is `reduce_add` of each block moved to the front of a zeroed
-    /// packet, bit for bit: values of mixed magnitudes and signs (where the order of
-    /// the additions shows), zeros of both signs, every block size.
     /// [`per_block`] against [`spread`] of the values loaded point `j` in lane `j`
     /// (what the pack built before), bit for bit: every stride and point count, values
     /// with zeros of both signs.
@@ -493,6 +490,9 @@ mod tests {
         assert!(lanes > 700_000, "{lanes}");
     }
 
+    /// [`block_sums`] is `reduce_add` of each block moved to the front of a zeroed
+    /// packet, bit for bit: values of mixed magnitudes and signs (where the order of
+    /// the additions shows), zeros of both signs, every block size.
     #[test]
     fn block_sums_are_the_reduce_add_of_each_block() {
         let mut next = xorshift64(0x8f1b_bcdc_bfa5_3e0b);
