@@ -33,7 +33,7 @@ use crate::simd::Packet;
 use crate::simd::direct_light::QuadLight;
 use crate::simd::glass_shadow::{SphereRoots, crossings_of_roots, meets_of_roots, settle_gathered};
 use crate::simd::kernels::RayLanes;
-use crate::simd::kernels::{sphere_lanes, sphere_roots, sphere_roots_for};
+use crate::simd::kernels::{sphere_roots, sphere_roots_for};
 use crate::simd::lanes3::V3;
 use crate::simd::quad_samples::{OriginBox, Unpacked3};
 use crate::simd::sphere_clearance::{F64_SLACK, clearance, gamma64};
@@ -931,30 +931,16 @@ pub(crate) fn settle_near_spheres(
     index: &(Vec<Option<usize>>, Vec<Option<usize>>),
     near_lists: impl FnOnce(&GlassSet) -> (u32, u32),
 ) -> LaneSettled {
-    let Some(set) = glass else {
-        // Every sphere blocks: no roots kept, so each lane test leaves out its square
-        // root and two divisions where no lane of `rest` has a real discriminant
-        // (`sphere_lanes`: bits equal to `meets_of_roots` of `sphere_roots` there).
-        let mut sph = 0u32;
-        for (k, &(center, radius)) in spheres.iter().enumerate() {
-            let rest = open & !sph;
-            if all >> (k & 31) & 1 == 1 && rest != 0 {
-                sph |= sphere_lanes(lanes, center, radius, tmax, rest).1;
-            }
-        }
-        return LaneSettled {
-            pass: live & !(tri | sph),
-            factor: V3::splat(Vec3::ONE),
-            settled: 0,
-        };
-    };
     let mut roots: [Option<SphereRoots<Packet>>; TINY_MAX_PRIMITIVES] = [None; TINY_MAX_PRIMITIVES];
     let mut sph = 0u32;
-    // Every lane read below is one of `open` (`rest`, `sph` and the glass settlement's
-    // lanes are parts of it), so a sphere whose line misses every open lane (no real
+    // A sphere whose line misses every lane that can still read its roots (no real
     // discriminant there) keeps zeros and no bits without its square root and two
-    // divisions (`sphere_roots_for`): the same answers. Most shadow rays of a lane
-    // group pass a sphere by together (floor points outside its shadow).
+    // divisions (`sphere_roots_for`): the same answers. With a glass set, the glass
+    // settlement below reads the kept roots on lanes of `open` (`rest`, `sph` and its
+    // lanes are parts of it), so the skip asks `open`; without one every sphere blocks,
+    // no roots are kept, and it asks only `rest` (the bits `sphere_lanes` gives). Most
+    // shadow rays of a lane group pass a sphere by together (floor points outside its
+    // shadow).
     //
     // Measured (helper bl22, 2026-11-29, 1 thread, host load 3-9, images
     // byte-identical): `shade_group_lanes`' share of the perf samples (cpu-clock),
@@ -964,13 +950,23 @@ pub(crate) fn settle_near_spheres(
     for (k, &(center, radius)) in spheres.iter().enumerate() {
         let rest = open & !sph;
         if all >> (k & 31) & 1 == 1 && rest != 0 {
-            let r = sphere_roots_for(lanes, center, radius, open);
+            let reads = if glass.is_some() { open } else { rest };
+            let r = sphere_roots_for(lanes, center, radius, reads);
             sph |= meets_of_roots(lanes, r, tmax, rest);
-            if let Some(slot) = roots.get_mut(k) {
+            if glass.is_some()
+                && let Some(slot) = roots.get_mut(k)
+            {
                 *slot = Some(r);
             }
         }
     }
+    let Some(set) = glass else {
+        return LaneSettled {
+            pass: live & !(tri | sph),
+            factor: V3::splat(Vec3::ONE),
+            settled: 0,
+        };
+    };
     if sph == 0 {
         return LaneSettled {
             pass: live & !tri,
