@@ -141,7 +141,7 @@ impl<const N: usize> Collapse<'_, N> {
             let BuildNode::Leaf { start, count, .. } = node else {
                 unreachable!()
             };
-            return self.leaf(*start, *count, pending);
+            return self.leaf(*start as usize, *count as usize, pending);
         };
         let (kids, n) = open_children::<N>(children);
         let kids = &kids[..n];
@@ -308,7 +308,7 @@ mod tests {
         let children = match node {
             BuildNode::Leaf { start, count, .. } => {
                 let first = groups.len();
-                for chunk in ids[*start..start + count].chunks(4) {
+                for chunk in ids[*start as usize..(start + count) as usize].chunks(4) {
                     let mut g = TriGroup4::EMPTY;
                     for (lane, &id) in chunk.iter().enumerate() {
                         let k = id as usize;
