@@ -139,7 +139,7 @@ fn flatten(root: &BuildNode, nodes: &mut Vec<Bvh2Node>) {
 fn leaf_or_placeholder(node: &BuildNode) -> Bvh2Node {
     let b = node.bounds();
     let (first, count) = match node {
-        BuildNode::Leaf { start, count, .. } => (*start as u32, *count as u32),
+        BuildNode::Leaf { start, count, .. } => (*start, *count),
         BuildNode::Interior { .. } => (0, 0),
     };
     Bvh2Node {
