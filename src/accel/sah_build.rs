@@ -662,7 +662,7 @@ fn build_tree_sampling<P: Primitives>(
 
 /// `n` zeroed references, allocated without being written (`calloc`: fresh pages from
 /// the kernel are already zero) and, on Linux, marked for transparent huge pages
-/// before their first touch.
+/// before their first touch where [`advise_huge_pages`] says so.
 ///
 /// Measured before (README "BVH build"): page faults were 5 % of a 1-thread build at
 /// 10^6 triangles, and the scratch array was a full copy of the references.
@@ -695,34 +695,42 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 
 /// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
 /// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
-/// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
+/// `madvise`), for arrays of at least 4 MiB and below [`RECYCLE_MIN_BYTES`]: heap
+/// blocks, whose pages the next build gets back (a 10^6 build's two 32 MB arrays).
+/// Failure changes nothing but speed.
 ///
-/// An array that may be recycled (at least [`RECYCLE_MIN_BYTES`]: a mapped block of
-/// its own) is advised over every 4 KiB page it touches, not only its whole 2 MiB
-/// pages (only those get huge pages either way): advice on part of a mapping splits
-/// it in several, and `mremap` refuses a range across mappings (`EFAULT`), so glibc's
-/// `realloc` of the array ([`SpareRefs::into_vec`]) then copied all of it into a fresh
-/// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages). Smaller
-/// arrays, heap blocks that may share their first and last page, keep the advice to
-/// their whole huge pages.
+/// Not for larger arrays, which glibc maps afresh for every build and unmaps after
+/// (issue 12, helper bld23, 2026-11-29). This VM's balloon reports free memory to the
+/// host in blocks of 2 MiB and more (virtio-balloon `F_REPORTING`,
+/// `page_reporting_order` 9), and the host takes those pages back; a huge page is
+/// such a block, so touching a fresh one costs a host fault besides the guest's
+/// zeroing, while 4 KiB pages come first from smaller free blocks, never reported. A C
+/// test (`mmap` of 320 MB, one write per 4 KiB, unmapped, alternating 4 KiB and huge
+/// pages; load ~3): with 3 s between rounds, 4 KiB pages 208-323 ms and huge pages
+/// 1,367-1,788 ms; back to back, 214-239 against 82-109 ms (the first huge round
+/// 1,718). perf of `build_time 10000000 1 1` (two builds, 4 kHz `cpu-clock`), samples
+/// under page faults by the faulting function: with the advice 6,337 in
+/// `partition_on_axis` (the root's partition into the fresh scratch array), 4,241
+/// making the references, 1,113 the collapse's nodes, 864 `sysmalloc` (the child
+/// pairs' heap), 166 the triangle groups, 12,927 in all; without it 1,196 / 1,177 /
+/// 859 / 2,548 / 1,364, 7,722 in all (the later arrays now get more of the reported
+/// blocks, but the build pays ~650 ms less per build). Before, an advised array
+/// larger than this was advised over every page it touched, so that `mremap` could
+/// still move it whole ([`SpareRefs::into_vec`]); unadvised it needs no care.
 fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;
-        const PAGE: usize = 4 << 10;
-        if len < 2 * HUGE {
+        if !(2 * HUGE..RECYCLE_MIN_BYTES).contains(&len) {
             return;
         }
-        let (first, last) = (ptr as usize, ptr as usize + len);
-        let (start, end) = if len >= RECYCLE_MIN_BYTES {
-            (first / PAGE * PAGE, last.next_multiple_of(PAGE))
-        } else {
-            (first.next_multiple_of(HUGE), last / HUGE * HUGE)
-        };
+        let (start, end) = (
+            (ptr as usize).next_multiple_of(HUGE),
+            (ptr as usize + len) / HUGE * HUGE,
+        );
         if end > start {
-            // SAFETY: the range is (at most) the pages the live allocation lies in;
-            // MADV_HUGEPAGE only changes how pages are backed, never their contents, so
-            // it leaves anything else on the first and last page as it was.
+            // SAFETY: the range is the whole huge pages inside the live allocation;
+            // MADV_HUGEPAGE only changes how pages are backed, never their contents.
             unsafe {
                 libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
             }
@@ -2049,10 +2057,11 @@ mod tests {
         }
     }
 
-    /// The references' arrays come zeroed, at every size (huge-page advice from 4 MiB).
+    /// The references' arrays come zeroed, at every size (huge-page advice from 4 MiB
+    /// up to 32 MiB, none above).
     #[test]
     fn zeroed_refs_are_zero() {
-        for n in [0, 1, 1000, (4 << 20) / 32 + 3] {
+        for n in [0, 1, 1000, (4 << 20) / 32 + 3, RECYCLE_MIN_BYTES / 32 + 3] {
             let v = zeroed_refs(n);
             assert_eq!(v.len(), n);
             assert!(bits(&v).iter().all(|&b| b == 0), "{n} references");
