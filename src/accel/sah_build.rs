@@ -225,8 +225,12 @@ impl PrimRef {
 /// Leaf ranges are `u32` (the builder holds fewer than 2^32 primitives): a node is
 /// then 48 bytes (64 with `usize` ranges), and an interior node's child pair a 96-byte
 /// heap block (112 with glibc's header) instead of 128 (144). At 10^7 triangles the
-/// build makes 2.6 million pairs, every one in fresh heap pages (glibc trims the freed
-/// heap after each build); see [`build_tree`].
+/// build makes 2.6 million pairs, in heap pages that are fresh in every build (glibc
+/// trims the freed heap's top). Issue 12, helper bld23, 2026-11-29: peak RSS of
+/// `build_time 10000000 2 1` 185 -> 177 bytes per triangle, of `build_time 100000 9
+/// 1` 500 -> 406; CPU ms per 10^7 build (medians of 2, interleaved with the build
+/// before, load 4.8-8.8 with compiles running) 6,651 / 5,467 / 5,221 before against
+/// 6,246 / 5,302 / 5,487: within the noise on its own.
 pub(super) enum BuildNode {
     Leaf {
         bounds: BBox,
@@ -714,7 +718,14 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// making the references, 1,113 the collapse's nodes, 864 `sysmalloc` (the child
 /// pairs' heap), 166 the triangle groups, 12,927 in all; without it 1,196 / 1,177 /
 /// 859 / 2,548 / 1,364, 7,722 in all (the later arrays now get more of the reported
-/// blocks, but the build pays ~650 ms less per build). Before, an advised array
+/// blocks, but the build pays ~650 ms less per build). CPU ms per 10^7 build
+/// (`build_time 10000000 2 1`, medians of 2, interleaved with the build before, load
+/// 4.8-8.8 with compiles running): 6,651 / 5,467 / 5,221 before against 4,556 / 4,670 /
+/// 3,861; with the 48-byte [`BuildNode`] too (load 4.3-5.2), 4,670 / 4,585 / 3,905
+/// against 4,051 / 3,977 / 3,834, wall ms 13,689 / 6,496 / 3,950 against 10,791 /
+/// 5,765 / 3,767 (2.65 Mtriangles/s in the quietest round). Page faults per build
+/// 69,058 -> 247,396 (4 KiB each now). On a host without free-page reporting the
+/// advice would win instead (the back-to-back rounds above). Before, an advised array
 /// larger than this was advised over every page it touched, so that `mremap` could
 /// still move it whole ([`SpareRefs::into_vec`]); unadvised it needs no care.
 fn advise_huge_pages(ptr: *mut u8, len: usize) {
