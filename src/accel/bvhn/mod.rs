@@ -43,6 +43,7 @@ mod qnode;
 mod single;
 mod sorted;
 mod stack;
+mod store;
 mod stream;
 #[cfg(test)]
 mod tests;

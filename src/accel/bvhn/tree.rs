@@ -6,11 +6,11 @@ use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, lea
 use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
+use super::store::NodeStore;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
 use crate::accel::sah_build::build_tree_keeping_refs;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
-use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
 use crate::simd::{PACKET_WIDTH, Packet};
@@ -18,8 +18,9 @@ use std::time::Instant;
 
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
-    /// Triangle meshes: groups of four, SoA.
-    Triangles(Vec<TriGroup4>),
+    /// Triangle meshes: groups of four, SoA, in the node store after their parent
+    /// node (`NodeStore::groups`).
+    Triangles,
     /// Anything else: the primitives in leaf order and their original indices.
     Scalar { prims: P, ids: Vec<u32> },
 }
@@ -51,7 +52,9 @@ impl Default for Prefetch {
 /// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]), with exact
 /// ([`BvhNode`], the default) or compressed ([`QNode`]) nodes: see [`WideNode`].
 pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
-    pub nodes: Vec<T>,
+    /// The nodes and, after each, its leaves' triangle groups; an interior reference
+    /// is a node's unit offset in it (`store.rs`).
+    pub nodes: NodeStore<T, N>,
     pub(super) leaves: Leaves<P>,
     pub(super) root: u32,
     pub(super) info: AccelInfo,
@@ -163,12 +166,17 @@ where
         // 6.18 (8), bvh8-stream diffuse 3.00 / 3.05 (8); bunny primary 35.73 / 36.68
         // (8). Same checksums. Within this host's noise either way, and the renumbering
         // copies the node array (22 MB at 10^6) inside the build.
-        // Compressed nodes are quantised from the exact ones (for exact nodes this is
-        // the identity, collected in place).
-        let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
+        // The nodes (compressed ones quantised from the exact ones) and, after each,
+        // its leaves' triangle groups, in one store (`store.rs`).
+        let (nodes, root) = NodeStore::<T, N>::build(
+            &nodes,
+            triangles.is_some().then_some(groups.as_slice()),
+            root,
+        );
+        drop(groups);
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
         let leaves = if triangles.is_some() {
-            Leaves::Triangles(groups)
+            Leaves::Triangles
         } else {
             Leaves::Scalar {
                 prims: prims.permute(&ids),
@@ -176,7 +184,7 @@ where
             }
         };
         let leaf_bytes = match &leaves {
-            Leaves::Triangles(g) => g.len() * std::mem::size_of::<TriGroup4>(),
+            Leaves::Triangles => 0,
             Leaves::Scalar { prims, ids } => prims.memory_bytes() + ids.len() * 4,
         };
         let mut bvh = Bvh {
@@ -212,7 +220,7 @@ where
             nodes: bvh.nodes.len(),
             leaves: leaf_count,
             max_depth: depth,
-            memory_bytes: bvh.nodes.len() * std::mem::size_of::<T>() + leaf_bytes,
+            memory_bytes: bvh.nodes.bytes() + leaf_bytes,
             sah_cost: sah,
         };
         bvh
@@ -273,7 +281,7 @@ where
     /// 3.0 vs 2.5 with FMA, primary 9.0 vs 7.6; `bvh8-stream` diffuse 3.1 vs 3.0;
     /// `bvh4-single` diffuse 2.7 vs 2.7). On is the experiment `bench`'s `+fma` modes run.
     pub fn set_fma_slab(&mut self, on: bool) {
-        self.fma_slab = on && FMA_SLAB && matches!(self.leaves, Leaves::Triangles(_));
+        self.fma_slab = on && FMA_SLAB && matches!(self.leaves, Leaves::Triangles);
     }
 
     /// Whether the FMA single-ray kernel calls its leaf test out of line.
@@ -287,8 +295,8 @@ where
     pub(super) fn prefetch_child(&self, r: u32) {
         if !is_leaf(r) {
             prefetch(&self.nodes[r as usize], 4);
-        } else if let Leaves::Triangles(groups) = &self.leaves
-            && let Some(g) = groups.get(leaf_range(r).start)
+        } else if let Leaves::Triangles = self.leaves
+            && let Some(g) = self.nodes.groups(r).first()
         {
             prefetch(g, 3);
         }
