@@ -697,7 +697,7 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages). Smaller
 /// arrays, heap blocks that may share their first and last page, keep the advice to
 /// their whole huge pages.
-pub(crate) fn advise_huge_pages(ptr: *mut u8, len: usize) {
+fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;

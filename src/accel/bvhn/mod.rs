@@ -43,7 +43,6 @@ mod qnode;
 mod single;
 mod sorted;
 mod stack;
-mod store;
 mod stream;
 #[cfg(test)]
 mod tests;

@@ -248,8 +248,8 @@ where
                         tprim = L::select(sel, prim_lanes(ids[k]), tprim);
                     }
                 }
-            } else if let Leaves::Triangles = self.leaves {
-                for g in self.nodes.groups(cur) {
+            } else if let Leaves::Triangles(groups) = &self.leaves {
+                for g in &groups[leaf_range(cur)] {
                     // Tried, slower (issue 12, pkt17): with a shared origin, the group's
                     // corners moved to it once per group with four-lane subtractions
                     // (nine, into a stack array, where some triangle is a candidate) and
@@ -413,8 +413,8 @@ where
                         break;
                     }
                 }
-            } else if let Leaves::Triangles = self.leaves {
-                'groups: for g in self.nodes.groups(cur) {
+            } else if let Leaves::Triangles(groups) = &self.leaves {
+                'groups: for g in &groups[leaf_range(cur)] {
                     let cand = bounds.triangle_candidates(g);
                     for lane in 0..4 {
                         if g.ids[lane] == u32::MAX || cand >> lane & 1 == 0 {

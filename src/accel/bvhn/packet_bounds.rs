@@ -249,7 +249,7 @@ mod tests {
     where
         Width<N>: NodeWidth,
     {
-        let Leaves::Triangles = bvh.leaves else {
+        let Leaves::Triangles(groups) = &bvh.leaves else {
             panic!("triangle leaves expected");
         };
         let packet = RayPacket::from_rays(rays);
@@ -265,7 +265,7 @@ mod tests {
                 setup.shared_origin,
                 true,
             );
-            for tri in bvh.nodes.all_groups() {
+            for tri in groups {
                 let cand = bounds.triangle_candidates(tri);
                 for lane in 0..4 {
                     if tri.ids[lane] == u32::MAX {

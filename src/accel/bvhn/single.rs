@@ -317,8 +317,8 @@ where
     pub(super) fn leaf_closest(&self, q: &RayQuery, r: u32, mut tmax: f32) -> Option<Hit> {
         let mut best = None;
         match &self.leaves {
-            Leaves::Triangles => {
-                for g in self.nodes.groups(r) {
+            Leaves::Triangles(groups) => {
+                for g in &groups[leaf_range(r)] {
                     if let Some((lane, h)) = triangle4_closest(q, g, tmax) {
                         tmax = h.t;
                         best = Some(Hit {
@@ -362,9 +362,7 @@ where
     #[inline(always)]
     pub(super) fn leaf_any(&self, q: &RayQuery, r: u32) -> bool {
         match &self.leaves {
-            Leaves::Triangles => self
-                .nodes
-                .groups(r)
+            Leaves::Triangles(groups) => groups[leaf_range(r)]
                 .iter()
                 .any(|g| triangle4_any(q, g, q.tmax)),
             Leaves::Scalar { prims, .. } => {
@@ -424,8 +422,8 @@ where
     /// Offers the candidates of leaf `r`; true when the traversal is finished.
     fn leaf_filtered(&self, q: &RayQuery, r: u32, sink: &mut FilterSink) -> bool {
         match &self.leaves {
-            Leaves::Triangles => {
-                for g in self.nodes.groups(r) {
+            Leaves::Triangles(groups) => {
+                for g in &groups[leaf_range(r)] {
                     for lane in (0..4).filter(|&l| g.ids[l] != u32::MAX) {
                         let corners = g.corners(lane);
                         if sink.test_with(g.ids[lane], |tmax, f| {

@@ -6,11 +6,11 @@ use super::node::{BvhNode, EMPTY_CHILD, NodeWidth, WideNode, Width, is_leaf, lea
 use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
-use super::store::NodeStore;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
 use crate::accel::sah_build::build_tree_keeping_refs;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
+use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
 use crate::simd::{PACKET_WIDTH, Packet};
@@ -18,9 +18,8 @@ use std::time::Instant;
 
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
-    /// Triangle meshes: groups of four, SoA, in the node store after their parent
-    /// node (`NodeStore::groups`).
-    Triangles,
+    /// Triangle meshes: groups of four, SoA.
+    Triangles(Vec<TriGroup4>),
     /// Anything else: the primitives in leaf order and their original indices.
     Scalar { prims: P, ids: Vec<u32> },
 }
@@ -52,9 +51,7 @@ impl Default for Prefetch {
 /// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]), with exact
 /// ([`BvhNode`], the default) or compressed ([`QNode`]) nodes: see [`WideNode`].
 pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
-    /// The nodes and, after each, its leaves' triangle groups; an interior reference
-    /// is a node's unit offset in it (`store.rs`).
-    pub nodes: NodeStore<T, N>,
+    pub nodes: Vec<T>,
     pub(super) leaves: Leaves<P>,
     pub(super) root: u32,
     pub(super) info: AccelInfo,
@@ -166,17 +163,35 @@ where
         // 6.18 (8), bvh8-stream diffuse 3.00 / 3.05 (8); bunny primary 35.73 / 36.68
         // (8). Same checksums. Within this host's noise either way, and the renumbering
         // copies the node array (22 MB at 10^6) inside the build.
-        // The nodes (compressed ones quantised from the exact ones) and, after each,
-        // its leaves' triangle groups, in one store (`store.rs`).
-        let (nodes, root) = NodeStore::<T, N>::build(
-            &nodes,
-            triangles.is_some().then_some(groups.as_slice()),
-            root,
-        );
-        drop(groups);
+        // Tried, no clear win, reverted (issue 12, big23, 2026-11-29; commit db5d216 on
+        // branch big23, `store.rs`): every node followed by its leaf children's triangle
+        // groups in one array of 32-byte units (a node's cache lines, then its leaves'
+        // lines, as Embree's block allocator lays a leaf out after its parent; interior
+        // references and leaf `first` as unit offsets; `validate()` checked that an
+        // interior reference is a node's start and that a leaf's groups lie in the array
+        // clear of every node), built by a pass after the collapse. Same checksums (10^6
+        // and bunny, every mode). 10^6 (`bench --mesh /tmp/m1e6.obj --threads 1 --reps 5
+        // --modes bvh8-packet,bvh8-stream`, AVX-512, load 5-7, 9 interleaved rounds
+        // against the session's base binary, Mrays per CPU-second, min/median/max, base
+        // then store): bvh8-packet primary 14.99/17.30/23.54 against 15.89/18.04/20.28,
+        // shadow 5.23/6.09/7.15 against 5.58/6.31/6.57, diffuse 1.91/2.37/2.54 against
+        // 1.95/2.35/2.54; bvh8-stream diffuse 2.23/2.72/2.89 against 2.25/2.73/3.16,
+        // shadow 3.74/4.72/5.64 against 3.03/4.88/5.33: medians +2 to +4 % on primary
+        // and shadow, level on diffuse, every range overlapping. The build paid for the
+        // copy into a fresh 63 MB array (glibc maps a block that size afresh for every
+        // build): `build_time 1000000 3 1`, 3 interleaved rounds, CPU ms medians
+        // 348/328/359 against 393/389/382, page faults 17,546 against 33,077, peak RSS
+        // 253 against 316 bytes per triangle, 62.9 against 63.6 bytes per triangle (a
+        // unit of padding after an odd number of groups). With `madvise(MADV_HUGEPAGE)`
+        // on the new array the faults fell to 17,747-18,258 but not the time (447/410/
+        // 385 against 519/449/495, a slower state of the host). A form without the
+        // copy would have the collapse write each node's leaf groups after it directly.
+        // Compressed nodes are quantised from the exact ones (for exact nodes this is
+        // the identity, collected in place).
+        let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
         let leaves = if triangles.is_some() {
-            Leaves::Triangles
+            Leaves::Triangles(groups)
         } else {
             Leaves::Scalar {
                 prims: prims.permute(&ids),
@@ -184,7 +199,7 @@ where
             }
         };
         let leaf_bytes = match &leaves {
-            Leaves::Triangles => 0,
+            Leaves::Triangles(g) => g.len() * std::mem::size_of::<TriGroup4>(),
             Leaves::Scalar { prims, ids } => prims.memory_bytes() + ids.len() * 4,
         };
         let mut bvh = Bvh {
@@ -220,7 +235,7 @@ where
             nodes: bvh.nodes.len(),
             leaves: leaf_count,
             max_depth: depth,
-            memory_bytes: bvh.nodes.bytes() + leaf_bytes,
+            memory_bytes: bvh.nodes.len() * std::mem::size_of::<T>() + leaf_bytes,
             sah_cost: sah,
         };
         bvh
@@ -281,7 +296,7 @@ where
     /// 3.0 vs 2.5 with FMA, primary 9.0 vs 7.6; `bvh8-stream` diffuse 3.1 vs 3.0;
     /// `bvh4-single` diffuse 2.7 vs 2.7). On is the experiment `bench`'s `+fma` modes run.
     pub fn set_fma_slab(&mut self, on: bool) {
-        self.fma_slab = on && FMA_SLAB && matches!(self.leaves, Leaves::Triangles);
+        self.fma_slab = on && FMA_SLAB && matches!(self.leaves, Leaves::Triangles(_));
     }
 
     /// Whether the FMA single-ray kernel calls its leaf test out of line.
@@ -295,8 +310,8 @@ where
     pub(super) fn prefetch_child(&self, r: u32) {
         if !is_leaf(r) {
             prefetch(&self.nodes[r as usize], 4);
-        } else if let Leaves::Triangles = self.leaves
-            && let Some(g) = self.nodes.groups(r).first()
+        } else if let Leaves::Triangles(groups) = &self.leaves
+            && let Some(g) = groups.get(leaf_range(r).start)
         {
             prefetch(g, 3);
         }
