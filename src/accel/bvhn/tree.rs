@@ -163,6 +163,29 @@ where
         // 6.18 (8), bvh8-stream diffuse 3.00 / 3.05 (8); bunny primary 35.73 / 36.68
         // (8). Same checksums. Within this host's noise either way, and the renumbering
         // copies the node array (22 MB at 10^6) inside the build.
+        // Tried, no clear win, reverted (issue 12, big23, 2026-11-29; commit db5d216 on
+        // branch big23, `store.rs`): every node followed by its leaf children's triangle
+        // groups in one array of 32-byte units (a node's cache lines, then its leaves'
+        // lines, as Embree's block allocator lays a leaf out after its parent; interior
+        // references and leaf `first` as unit offsets; `validate()` checked that an
+        // interior reference is a node's start and that a leaf's groups lie in the array
+        // clear of every node), built by a pass after the collapse. Same checksums (10^6
+        // and bunny, every mode). 10^6 (`bench --mesh /tmp/m1e6.obj --threads 1 --reps 5
+        // --modes bvh8-packet,bvh8-stream`, AVX-512, load 5-7, 9 interleaved rounds
+        // against the session's base binary, Mrays per CPU-second, min/median/max, base
+        // then store): bvh8-packet primary 14.99/17.30/23.54 against 15.89/18.04/20.28,
+        // shadow 5.23/6.09/7.15 against 5.58/6.31/6.57, diffuse 1.91/2.37/2.54 against
+        // 1.95/2.35/2.54; bvh8-stream diffuse 2.23/2.72/2.89 against 2.25/2.73/3.16,
+        // shadow 3.74/4.72/5.64 against 3.03/4.88/5.33: medians +2 to +4 % on primary
+        // and shadow, level on diffuse, every range overlapping. The build paid for the
+        // copy into a fresh 63 MB array (glibc maps a block that size afresh for every
+        // build): `build_time 1000000 3 1`, 3 interleaved rounds, CPU ms medians
+        // 348/328/359 against 393/389/382, page faults 17,546 against 33,077, peak RSS
+        // 253 against 316 bytes per triangle, 62.9 against 63.6 bytes per triangle (a
+        // unit of padding after an odd number of groups). With `madvise(MADV_HUGEPAGE)`
+        // on the new array the faults fell to 17,747-18,258 but not the time (447/410/
+        // 385 against 519/449/495, a slower state of the host). A form without the
+        // copy would have the collapse write each node's leaf groups after it directly.
         // Compressed nodes are quantised from the exact ones (for exact nodes this is
         // the identity, collected in place).
         let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
