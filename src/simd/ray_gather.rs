@@ -126,12 +126,10 @@ mod tests {
     use super::*;
     use crate::test_rng::xorshift64;
 
-    /// The transposed loads give the plain gather's lanes bit for bit (NaN, signed
-    /// zeros, infinities among the components), for consecutive windows and for
-    /// scattered, repeated indices.
-    #[test]
-    fn transposed_loads_equal_the_plain_gather() {
-        let mut next = xorshift64(0x2545_f491_4f6c_dd1d);
+    /// `n` rays of values drawn from `seed`, a tenth of them NaN, signed zeros,
+    /// infinities or a subnormal.
+    fn random_rays(seed: u64, n: usize) -> Vec<Ray> {
+        let mut next = xorshift64(seed);
         let specials = [
             f32::NAN,
             -0.0,
@@ -148,7 +146,7 @@ mod tests {
                 ((r >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1e3
             }
         };
-        let rays: Vec<Ray> = (0..200)
+        (0..n)
             .map(|_| Ray {
                 origin: glam::Vec3::new(draw(), draw(), draw()),
                 dir: glam::Vec3::new(draw(), draw(), draw()),
@@ -156,7 +154,15 @@ mod tests {
                 tmax: draw(),
                 time: draw(),
             })
-            .collect();
+            .collect()
+    }
+
+    /// The transposed loads give the plain gather's lanes bit for bit (NaN, signed
+    /// zeros, infinities among the components), for consecutive windows and for
+    /// scattered, repeated indices.
+    #[test]
+    fn transposed_loads_equal_the_plain_gather() {
+        let rays = random_rays(0x2545_f491_4f6c_dd1d, 200);
         let bits = |l: &RayLanes<Packet>, t: Packet| {
             let mut v = Vec::new();
             for p in l.o.iter().chain(&l.d).chain([&l.tmin, &t]) {
@@ -184,25 +190,7 @@ mod tests {
     /// every shorter window, with NaN, signed zeros and infinities among the values.
     #[test]
     fn packet_of_rays_is_from_rays() {
-        let mut next = xorshift64(0x9e37_79b9_7f4a_7c15);
-        let specials = [f32::NAN, -0.0, 0.0, f32::INFINITY, -1e-40];
-        let mut draw = move || {
-            let r = next();
-            if r.is_multiple_of(9) {
-                specials[(r >> 8) as usize % specials.len()]
-            } else {
-                ((r >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1e3
-            }
-        };
-        let rays: Vec<Ray> = (0..64)
-            .map(|_| Ray {
-                origin: glam::Vec3::new(draw(), draw(), draw()),
-                dir: glam::Vec3::new(draw(), draw(), draw()),
-                tmin: draw(),
-                tmax: draw(),
-                time: draw(),
-            })
-            .collect();
+        let rays = random_rays(0x9e37_79b9_7f4a_7c15, 64);
         let bits = |p: &RayPacket| {
             let mut v: Vec<u32> = Vec::new();
             for a in p
