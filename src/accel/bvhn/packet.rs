@@ -193,6 +193,24 @@ where
                 let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
+                // Tried, no win (issue 12, pk23): with a shared origin (camera packets),
+                // children chosen by the whole-packet test alone, as Embree's coherent
+                // path descends by its frustum: no per-lane test of the candidates, each
+                // child pushed with its interval entry bound in every lane (no later than
+                // any lane's entry, so the pop's per-lane cull stays exact) and ordered
+                // by it; together with the far end shrink noted at `PacketBounds::new`.
+                // Same checksums, bvhn / simd_equivalence / accel_equivalence tests
+                // passed. `examples/stream_profile MESH bvh8-packet primary 9`, 1 thread,
+                // AVX-512, interleaved, Mrays per CPU-second, min/median/max of the
+                // rounds' medians: bunny, 10 rounds at load 3.8-8, 44.25/45.53/50.77
+                // before, 26.19/43.96/55.31 after; 8 rounds at load 6.7-6.9, three ways,
+                // 33.54/41.90/46.92 before, 32.56/42.06/48.04 with it, 31.55/41.20/43.24
+                // with the shrink alone; 10^6 (`/tmp/m1e6.obj`), 4 rounds at load
+                // 5.1-5.8, 16.95/20.26/23.54 before, 14.73/18.44/19.04 with it,
+                // 18.96/19.59/20.71 with the shrink alone (likely reason at 10^6: the
+                // interval test passes more small deep boxes no lane enters, and each
+                // costs a node's lines). `bench --modes bvh4-packet,bvh8-packet`, 6
+                // rounds, load 5-7: bvh8 primary 30.23/32.58/45.82 -> 31.59/32.67/33.65.
                 // Tried, no win (issue 12, pkt17): with a shared origin, the node's six
                 // near/far planes moved to it once per node with N-lane subtractions
                 // (shared by the whole-packet test, which computes those differences
