@@ -190,6 +190,12 @@ where
                 // Written for the children entered, read for those only: not
                 // zero-filled (512 bytes per 8-wide node visit with 16 lanes).
                 let mut enters = [const { std::mem::MaybeUninit::<L>::uninit() }; N];
+                // Tried, no win (issue 12, pk23): `order` declared once per group instead
+                // (entries past `n` are never read), so it is not zero-filled at every
+                // node visit (sixteen stores for an 8-wide node, ~1.5 % of this
+                // function's samples in `perf annotate`). `stream_profile bunny.obj
+                // bvh8-packet primary 9`, 8 interleaved rounds, load 3.3-3.4, Mrays per
+                // CPU-second: 44.00/46.68/47.57 before, 33.44/45.98/46.55 after.
                 let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
@@ -211,6 +217,12 @@ where
                 // interval test passes more small deep boxes no lane enters, and each
                 // costs a node's lines). `bench --modes bvh4-packet,bvh8-packet`, 6
                 // rounds, load 5-7: bvh8 primary 30.23/32.58/45.82 -> 31.59/32.67/33.65.
+                // On a quiet host (load 2.4-2.8, same command, three ways): bunny, 6
+                // rounds, 35.05/44.34/46.98 before, 32.96/43.84/53.94 with it,
+                // 38.19/42.19/49.86 with the shrink alone; 10^6, 5 rounds,
+                // 19.68/21.61/24.11 before, 17.32/19.73/20.74 with it (-9 %),
+                // 19.03/20.29/20.99 with the shrink alone (-6 %). The change is kept as
+                // a patch in the pk23 report, not in the tree.
                 // Tried, no win (issue 12, pkt17): with a shared origin, the node's six
                 // near/far planes moved to it once per node with N-lane subtractions
                 // (shared by the whole-packet test, which computes those differences
