@@ -190,9 +190,39 @@ where
                 // Written for the children entered, read for those only: not
                 // zero-filled (512 bytes per 8-wide node visit with 16 lanes).
                 let mut enters = [const { std::mem::MaybeUninit::<L>::uninit() }; N];
+                // Tried, no win (issue 12, pk23): `order` declared once per group instead
+                // (entries past `n` are never read), so it is not zero-filled at every
+                // node visit (sixteen stores for an 8-wide node, ~1.5 % of this
+                // function's samples in `perf annotate`). `stream_profile bunny.obj
+                // bvh8-packet primary 9`, 8 interleaved rounds, load 3.3-3.4, Mrays per
+                // CPU-second: 44.00/46.68/47.57 before, 33.44/45.98/46.55 after.
                 let mut order = [(0usize, 0f32); N];
                 let mut n = 0;
                 let rep = active.trailing_zeros() as usize;
+                // Tried, no win (issue 12, pk23): with a shared origin (camera packets),
+                // children chosen by the whole-packet test alone, as Embree's coherent
+                // path descends by its frustum: no per-lane test of the candidates, each
+                // child pushed with its interval entry bound in every lane (no later than
+                // any lane's entry, so the pop's per-lane cull stays exact) and ordered
+                // by it; together with the far end shrink noted at `PacketBounds::new`.
+                // Same checksums, bvhn / simd_equivalence / accel_equivalence tests
+                // passed. `examples/stream_profile MESH bvh8-packet primary 9`, 1 thread,
+                // AVX-512, interleaved, Mrays per CPU-second, min/median/max of the
+                // rounds' medians: bunny, 10 rounds at load 3.8-8, 44.25/45.53/50.77
+                // before, 26.19/43.96/55.31 after; 8 rounds at load 6.7-6.9, three ways,
+                // 33.54/41.90/46.92 before, 32.56/42.06/48.04 with it, 31.55/41.20/43.24
+                // with the shrink alone; 10^6 (`/tmp/m1e6.obj`), 4 rounds at load
+                // 5.1-5.8, 16.95/20.26/23.54 before, 14.73/18.44/19.04 with it,
+                // 18.96/19.59/20.71 with the shrink alone (likely reason at 10^6: the
+                // interval test passes more small deep boxes no lane enters, and each
+                // costs a node's lines). `bench --modes bvh4-packet,bvh8-packet`, 6
+                // rounds, load 5-7: bvh8 primary 30.23/32.58/45.82 -> 31.59/32.67/33.65.
+                // On a quiet host (load 2.4-2.8, same command, three ways): bunny, 6
+                // rounds, 35.05/44.34/46.98 before, 32.96/43.84/53.94 with it,
+                // 38.19/42.19/49.86 with the shrink alone; 10^6, 5 rounds,
+                // 19.68/21.61/24.11 before, 17.32/19.73/20.74 with it (-9 %),
+                // 19.03/20.29/20.99 with the shrink alone (-6 %). The change is kept as
+                // a patch in the pk23 report, not in the tree.
                 // Tried, no win (issue 12, pkt17): with a shared origin, the node's six
                 // near/far planes moved to it once per node with N-lane subtractions
                 // (shared by the whole-packet test, which computes those differences
