@@ -295,10 +295,14 @@ fn closest_packets(
 }
 
 /// Occlusion of `rays` in `a` as packets of [`PACKET_WIDTH`] consecutive rays built in
-/// lanes: [`closest_packets`]' counterpart, every entry of `out` written.
+/// lanes: [`closest_packets`]' counterpart, every entry of `out` written from the
+/// packet's bits ([`Accel::any_hit_packet_bits`]).
 fn any_packets(a: &dyn Accel, rays: &[Ray], out: &mut [bool]) {
     for (r, o) in rays.chunks(PACKET_WIDTH).zip(out.chunks_mut(PACKET_WIDTH)) {
-        a.any_hit_packet(&packet_of_rays(r), o);
+        let bits = a.any_hit_packet_bits(&packet_of_rays(r));
+        for (k, o) in o.iter_mut().enumerate() {
+            *o = bits >> k & 1 == 1;
+        }
     }
 }
 
