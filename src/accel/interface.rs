@@ -2,7 +2,6 @@
 
 use super::{HitFilter, QueryOptions, TraversalCounts};
 use crate::geometry::{Hit, Ray, RayPacket};
-use crate::simd::PACKET_WIDTH;
 
 /// Closest-hit and any-hit queries over one primitive set.
 ///
@@ -67,19 +66,6 @@ pub trait Accel: Send + Sync {
         for (i, o) in out[..packet.len].iter_mut().enumerate() {
             *o = self.any_hit(&packet.ray(i));
         }
-    }
-
-    /// Occlusion for one packet as bits: bit `k` set where lane `k` (below
-    /// `packet.len`) hits something within its interval, the answers of
-    /// [`any_hit_packet`](Self::any_hit_packet). Structures whose packet kernel answers
-    /// in bits (the wide BVHs) override this, so that a caller keeping bits is not
-    /// handed a `bool` per lane to pack again.
-    fn any_hit_packet_bits(&self, packet: &RayPacket) -> u32 {
-        let mut out = [false; PACKET_WIDTH];
-        self.any_hit_packet(packet, &mut out[..packet.len]);
-        out.iter()
-            .enumerate()
-            .fold(0, |bits, (k, &o)| bits | u32::from(o) << k)
     }
 
     /// What was built and what it cost.

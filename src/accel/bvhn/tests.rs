@@ -5,11 +5,11 @@ use super::packet_bounds::PacketBounds;
 use super::packet_setup::PacketSetup;
 use super::qnode::QNode;
 use super::stack::{PACKET_STACK, SINGLE_STACK};
-use super::tree::{Bvh, Bvh4, Bvh4c, Bvh8, Bvh8c, wide_build_options};
+use super::tree::{Bvh, Bvh4, Bvh8, wide_build_options};
 use crate::accel::sah_build::build_tree;
-use crate::accel::{Accel, AccelInfo, HitFilter, Primitives, QueryOptions, Triangles};
-use crate::geometry::{Hit, ROBUST_FAR_SCALE, Ray, RayPacket};
-use crate::simd::{PACKET_WIDTH, Packet};
+use crate::accel::{Accel, Primitives, Triangles};
+use crate::geometry::{ROBUST_FAR_SCALE, Ray, RayPacket};
+use crate::simd::Packet;
 use glam::Vec3;
 
 fn soup() -> Triangles {
@@ -278,92 +278,4 @@ fn large_builds_validate_at_one_and_two_threads() {
     let (a, b) = (one.info(), two.info());
     assert_eq!((a.nodes, a.leaves), (b.nodes, b.leaves));
     assert_eq!(a.sah_cost.to_bits(), b.sah_cost.to_bits());
-}
-
-/// `Accel` over another structure with only the required queries and `any_hit_packet`
-/// passed on, so its `any_hit_packet_bits` is the trait's default.
-struct Defaults<'a>(&'a dyn Accel);
-
-impl Accel for Defaults<'_> {
-    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.0.closest_hit(ray)
-    }
-    fn any_hit(&self, ray: &Ray) -> bool {
-        self.0.any_hit(ray)
-    }
-    fn filtered_hit(
-        &self,
-        ray: &Ray,
-        opts: QueryOptions,
-        filter: &mut HitFilter<'_>,
-    ) -> Option<Hit> {
-        self.0.filtered_hit(ray, opts, filter)
-    }
-    fn any_hit_packet(&self, packet: &RayPacket, out: &mut [bool]) {
-        self.0.any_hit_packet(packet, out);
-    }
-    fn info(&self) -> AccelInfo {
-        self.0.info()
-    }
-}
-
-/// The wide BVHs' occlusion bits (their kernel's, `Accel::any_hit_packet_bits`
-/// overridden) are the trait default's, built from `any_hit_packet`, and each bit is
-/// the single ray's answer: camera-like rays into the soup in packets of every length
-/// (partial ones included), with invalid rays and intervals that end early.
-#[test]
-fn packet_occlusion_bits_are_the_default_bits() {
-    let tris = soup();
-    let bvhs: [(&str, Box<dyn Accel>); 4] = [
-        ("bvh4", Box::new(Bvh4::build(tris.clone()))),
-        ("bvh8", Box::new(Bvh8::build(tris.clone()))),
-        ("bvh4c", Box::new(Bvh4c::build(tris.clone()))),
-        ("bvh8c", Box::new(Bvh8c::build(tris))),
-    ];
-    let eye = Vec3::new(5.0, 5.0, -20.0);
-    let rays: Vec<Ray> = (0..40 * 40)
-        .map(|i| {
-            let (x, y) = ((i % 40) as f32 / 39.0, (i / 40) as f32 / 39.0);
-            let d = Vec3::new(x * 0.6 - 0.3, y * 0.6 - 0.3, 1.0).normalize();
-            match i % 23 {
-                0 => Ray::new(eye, Vec3::ZERO),
-                1 => Ray::new(Vec3::splat(f32::NAN), d),
-                2..=4 => Ray::segment(eye, d, 0.0, 20.0 + (i % 9) as f32),
-                _ => Ray::new(eye, d),
-            }
-        })
-        .collect();
-    for (name, bvh) in &bvhs {
-        let (mut start, mut len, mut blocked, mut free) = (0, 1, 0, 0);
-        while start < rays.len() {
-            let r = &rays[start..(start + len).min(rays.len())];
-            let packet = RayPacket::from_rays(r);
-            let bits = bvh.any_hit_packet_bits(&packet);
-            assert_eq!(
-                bits,
-                Defaults(bvh.as_ref()).any_hit_packet_bits(&packet),
-                "{name} {start}"
-            );
-            for (k, ray) in r.iter().enumerate() {
-                assert_eq!(
-                    bits >> k & 1 == 1,
-                    bvh.any_hit(ray),
-                    "{name} ray {}",
-                    start + k
-                );
-                if bits >> k & 1 == 1 {
-                    blocked += 1;
-                } else {
-                    free += 1;
-                }
-            }
-            assert_eq!(bits >> r.len(), 0, "{name} {start}: bits past the packet");
-            start += r.len();
-            len = len % PACKET_WIDTH + 1;
-        }
-        assert!(
-            blocked > 200 && free > 200,
-            "{name}: {blocked} blocked, {free} free"
-        );
-    }
 }

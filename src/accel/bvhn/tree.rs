@@ -353,11 +353,6 @@ where
         self.packet_any::<Packet, _>(packet, out);
     }
 
-    fn any_hit_packet_bits(&self, packet: &RayPacket) -> u32 {
-        // The inherent entry point (`packet.rs`): the kernel's bits as they are.
-        Bvh::any_hit_packet_bits(self, packet)
-    }
-
     fn info(&self) -> AccelInfo {
         self.info.clone()
     }
