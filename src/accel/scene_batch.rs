@@ -260,6 +260,21 @@ fn scene_hit(h: Hit, prim: impl Fn(u32) -> PrimRef) -> SceneHit {
 /// next packet is traced, and `prim` is a generic (each set's constructor inlined):
 /// with a function pointer, each hit was assembled on the stack around the call and
 /// read back as a whole, and that read held a third of this function's samples.
+///
+/// Not done yet (issue 11, fr23b, 2026-11-29): the packet's hits handed over as lanes
+/// (t, u, v, prim and a hit bit each, the kernel's `PacketHits`) through an `Accel`
+/// method, so that neither the kernel writes the twenty-byte `Option<Hit>`s lane by
+/// lane nor `put` reads them back with a branch per lane. The wide BVHs cannot answer
+/// it from `tree.rs`: `packet_closest_lanes` and `PacketHits` are private to
+/// `bvhn/packet.rs`, and the public `closest_hit_packet_lanes` gives no `u`/`v`; it
+/// needs them reachable from `tree.rs` (`pub(super)`). Tried, no win, reverted (commit
+/// 190e389): the same pattern for occlusion, `Accel::any_hit_packet_bits` (the wide
+/// BVHs' kernel bits) written into `out` by [`any_packets`] instead of
+/// `any_hit_packet`'s `bool`s. Same answers; bunny 1024x1024, 1 thread, `ab.sh` render
+/// ms medians of 21 interleaved rounds, load 4.1-4.4, earlier binary / bits: 73.8 /
+/// 77.7, 71.3 / 75.4, (order swapped) 75.8 / 77.3; against `/tmp/base23` 71.7 / 74.8;
+/// 9 rounds 77.8 / 77.8. Minimums 62.5-64.0 either way: the bits save one byte store
+/// per lane, within this host's noise at best.
 fn closest_packets(
     a: &dyn Accel,
     rays: &[Ray],
