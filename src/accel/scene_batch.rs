@@ -54,21 +54,15 @@ impl SceneAccel {
         let hits = &mut scratch.hits;
         // Incoherent batches (diffuse-like queues) go through the stream kernel.
         let stream = prefers_stream(rays);
-        let packets = !stream && self.packets_are_batches();
+        let path = if stream {
+            BatchPath::Stream
+        } else if self.packets_are_batches() {
+            BatchPath::Packets
+        } else {
+            BatchPath::Batch
+        };
         match &self.triangles {
-            Some(a) if packets => closest_packets(a.as_ref(), rays, out, PrimRef::Triangle, true),
-            Some(a) => {
-                hits.clear();
-                hits.resize(rays.len(), None);
-                if stream {
-                    a.closest_hit_stream(rays, hits);
-                } else {
-                    a.closest_hit_batch(rays, hits);
-                }
-                for (o, h) in out.iter_mut().zip(hits.iter()) {
-                    *o = h.map(|h| scene_hit(h, PrimRef::Triangle));
-                }
-            }
+            Some(a) => closest_set(a.as_ref(), rays, out, hits, path, PrimRef::Triangle, true),
             None => out.fill(None),
         }
         if let Some(a) = &self.spheres {
@@ -81,22 +75,7 @@ impl SceneAccel {
                 }
                 r
             }));
-            if packets {
-                closest_packets(a.as_ref(), clipped, out, PrimRef::Sphere, false);
-                return;
-            }
-            hits.clear();
-            hits.resize(rays.len(), None);
-            if stream {
-                a.closest_hit_stream(clipped, hits);
-            } else {
-                a.closest_hit_batch(clipped, hits);
-            }
-            for (o, h) in out.iter_mut().zip(hits.iter()) {
-                if let Some(h) = h {
-                    *o = Some(scene_hit(*h, PrimRef::Sphere));
-                }
-            }
+            closest_set(a.as_ref(), clipped, out, hits, path, PrimRef::Sphere, false);
         }
     }
 
@@ -247,6 +226,58 @@ fn scene_hit(h: Hit, prim: impl Fn(u32) -> PrimRef) -> SceneHit {
     }
 }
 
+/// How a batch goes to a primitive set's structure.
+#[derive(Clone, Copy)]
+enum BatchPath {
+    /// The stream kernel (an incoherent batch, [`prefers_stream`]).
+    Stream,
+    /// Packets built in lanes ([`closest_packets`], [`any_packets`]).
+    Packets,
+    /// The structure's own batch entry point.
+    Batch,
+}
+
+/// One primitive set's closest hits for `rays` merged into `out` by [`put_hit`]
+/// (`first`: the first set searched; a later one searches in front of the hits so
+/// far, its rays clipped by the caller). `hits` is scratch for the paths that answer
+/// a whole batch at once.
+fn closest_set(
+    a: &dyn Accel,
+    rays: &[Ray],
+    out: &mut [Option<SceneHit>],
+    hits: &mut Vec<Option<Hit>>,
+    path: BatchPath,
+    prim: impl Fn(u32) -> PrimRef + Copy,
+    first: bool,
+) {
+    match path {
+        BatchPath::Packets => return closest_packets(a, rays, out, prim, first),
+        BatchPath::Stream | BatchPath::Batch => {
+            hits.clear();
+            hits.resize(rays.len(), None);
+        }
+    }
+    if let BatchPath::Stream = path {
+        a.closest_hit_stream(rays, hits);
+    } else {
+        a.closest_hit_batch(rays, hits);
+    }
+    for (o, h) in out.iter_mut().zip(hits.iter()) {
+        put_hit(o, *h, prim, first);
+    }
+}
+
+/// A set's answer `h` for one ray into `o`: every answer for the `first` set
+/// searched, only hits for a later one (a hit there is in front of `o`'s).
+#[inline(always)]
+fn put_hit(o: &mut Option<SceneHit>, h: Option<Hit>, prim: impl Fn(u32) -> PrimRef, first: bool) {
+    if first {
+        *o = h.map(|h| scene_hit(h, prim));
+    } else if let Some(h) = h {
+        *o = Some(scene_hit(h, prim));
+    }
+}
+
 /// The closest hits of `rays` in `a` as packets of [`PACKET_WIDTH`] consecutive rays,
 /// each built in lanes ([`packet_of_rays`]) and answered into a packet's worth of
 /// hits, then into `out` as hits on `prim`'s set: every entry (`first`, the first set
@@ -284,11 +315,7 @@ fn closest_packets(
 ) {
     let put = |o: &mut [Option<SceneHit>], hits: &[Option<Hit>; PACKET_WIDTH]| {
         for (o, h) in o.iter_mut().zip(hits) {
-            if first {
-                *o = h.map(|h| scene_hit(h, prim));
-            } else if let Some(h) = *h {
-                *o = Some(scene_hit(h, prim));
-            }
+            put_hit(o, *h, prim, first);
         }
     };
     let mut hits = [[None; PACKET_WIDTH]; 2];
