@@ -699,11 +699,22 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 
 /// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
 /// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
-/// `madvise`), for arrays of at least 4 MiB and below [`RECYCLE_MIN_BYTES`]: heap
-/// blocks, whose pages the next build gets back (a 10^6 build's two 32 MB arrays).
-/// Failure changes nothing but speed.
+/// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
 ///
-/// Not for larger arrays, which glibc maps afresh for every build and unmaps after
+/// An array that may be recycled (at least [`RECYCLE_MIN_BYTES`]: a mapped block of
+/// its own) is advised over every 4 KiB page it touches, not only its whole 2 MiB
+/// pages (only those get huge pages either way): advice on part of a mapping splits
+/// it in several, and `mremap` refuses a range across mappings (`EFAULT`), so glibc's
+/// `realloc` of the array ([`SpareRefs::into_vec`]) then copied all of it into a fresh
+/// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages). Smaller
+/// arrays, heap blocks that may share their first and last page, keep the advice to
+/// their whole huge pages.
+///
+/// Dead end (issue 12, helper bld23, 2026-11-29, commit ea0c063, reverted by the lead the
+/// same day): no advice for arrays of [`RECYCLE_MIN_BYTES`] and more. bld23's reasoning
+/// and its loaded measurements, as it wrote them:
+///
+/// "Not for larger arrays, which glibc maps afresh for every build and unmaps after
 /// (issue 12, helper bld23, 2026-11-29). This VM's balloon reports free memory to the
 /// host in blocks of 2 MiB and more (virtio-balloon `F_REPORTING`,
 /// `page_reporting_order` 9), and the host takes those pages back; a huge page is
@@ -727,21 +738,35 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// 69,058 -> 247,396 (4 KiB each now). On a host without free-page reporting the
 /// advice would win instead (the back-to-back rounds above). Before, an advised array
 /// larger than this was advised over every page it touched, so that `mremap` could
-/// still move it whole ([`SpareRefs::into_vec`]); unadvised it needs no care.
+/// still move it whole ([`SpareRefs::into_vec`]); unadvised it needs no care."
+///
+/// On a quiet host (load 0.9-1.5, 04:44-04:47 UTC) the advice wins: `build_time
+/// 10000000 2 1` interleaved with the session's starting build, 5 rounds (the order
+/// swapped in the last two), wall ms medians of the starting build (the advice, 64-byte
+/// `BuildNode`s) 3,462 / 3,610 / 3,361 / 3,521 / 3,486 against 3,563 / 3,792 / 3,816 /
+/// 3,880 / 3,860 for bld23's (no advice above 32 MiB, 48-byte nodes, the latter within
+/// the noise on its own): slower in every round, 2.62 against 2.87 Mtriangles/s at the
+/// median. Which side wins depends on
+/// whether the host is reclaiming reported pages at the time; the quiet figure is the
+/// one the project quotes, so the advice stays.
 fn advise_huge_pages(ptr: *mut u8, len: usize) {
     #[cfg(target_os = "linux")]
     {
         const HUGE: usize = 2 << 20;
-        if !(2 * HUGE..RECYCLE_MIN_BYTES).contains(&len) {
+        const PAGE: usize = 4 << 10;
+        if len < 2 * HUGE {
             return;
         }
-        let (start, end) = (
-            (ptr as usize).next_multiple_of(HUGE),
-            (ptr as usize + len) / HUGE * HUGE,
-        );
+        let (first, last) = (ptr as usize, ptr as usize + len);
+        let (start, end) = if len >= RECYCLE_MIN_BYTES {
+            (first / PAGE * PAGE, last.next_multiple_of(PAGE))
+        } else {
+            (first.next_multiple_of(HUGE), last / HUGE * HUGE)
+        };
         if end > start {
-            // SAFETY: the range is the whole huge pages inside the live allocation;
-            // MADV_HUGEPAGE only changes how pages are backed, never their contents.
+            // SAFETY: the range is (at most) the pages the live allocation lies in;
+            // MADV_HUGEPAGE only changes how pages are backed, never their contents, so
+            // it leaves anything else on the first and last page as it was.
             unsafe {
                 libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
             }
@@ -2068,8 +2093,8 @@ mod tests {
         }
     }
 
-    /// The references' arrays come zeroed, at every size (huge-page advice from 4 MiB
-    /// up to 32 MiB, none above).
+    /// The references' arrays come zeroed, at every size (huge-page advice from 4 MiB;
+    /// above 32 MiB over every page they touch).
     #[test]
     fn zeroed_refs_are_zero() {
         for n in [0, 1, 1000, (4 << 20) / 32 + 3, RECYCLE_MIN_BYTES / 32 + 3] {
