@@ -525,9 +525,14 @@ impl Gather {
         };
         let corner_ids = |t: usize| [mesh.i0[t], mesh.i1[t], mesh.i2[t]];
         let (corners, normals) = if let Some(t) = shared_prim(mask, &h.prim) {
+            // Written out, not by `array::map`: that stayed an out-of-line
+            // `core::array::try_map` call (see `PacketBounds::triangle_candidates`).
+            let [c0, c1, c2] = mesh.corners(t);
+            let [i0, i1, i2] = corner_ids(t);
+            let normal = |vi: u32| V3::splat(raw_normal(vi));
             (
-                mesh.corners(t).map(V3::splat),
-                with_normals.then(|| corner_ids(t).map(|vi| V3::splat(raw_normal(vi)))),
+                [V3::splat(c0), V3::splat(c1), V3::splat(c2)],
+                with_normals.then(|| [normal(i0), normal(i1), normal(i2)]),
             )
         } else {
             // The arrays' pointers and lengths in locals, and the lanes walked in a
