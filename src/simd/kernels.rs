@@ -111,6 +111,70 @@ fn edge_error_bound<L: Lanes>(
     L::splat(2.0) * (L::splat(err::EDGE) * max_x * max_y + delta_y * max_x + delta_x * max_y)
 }
 
+/// The smallest edge bound [`certain_misses`] trusts (`2^-100`).
+const CERTAIN_MISS_MIN_BOUND: f32 = 1.0 / (1u128 << 100) as f32;
+
+/// Lanes whose edge functions prove a miss of the scalar test whatever its f64
+/// fallback finds: one edge function below `-2 δE`, another above `+2 δE`, both finite,
+/// and `δE >= 2^-100`. Such a lane is outside its triangle whatever the sign of its
+/// third, uncertain edge function, so the lane tests (`triangle_packet_by`,
+/// `triangle4`) answer its miss themselves instead of handing it to the scalar test.
+///
+/// Why (issue 12, pk24): `edge` used to hold every lane with some `|e| <= δE`. Rays of
+/// the 10^6 procedural sphere's camera often pass near the lines through its long
+/// edges, far from the edges themselves; counted with a temporary counter in
+/// `examples/stream_profile 1000000 bvh8-packet primary 3`, 217,050 lanes were
+/// flagged over the run and 178,115 of them (82 %) are certain misses (shadow:
+/// 46,702 / 38,387; bunny primary: 22,275 / 11,700; the single-ray `triangle4`:
+/// 5,080 / 2,895). Each flagged lane cost a scalar watertight test with its f64 edges
+/// (`intersect_triangle` + `edges_f64`: 5 % of the 10^6 primary samples, `perf record`).
+///
+/// Exact (the same answer as `geometry::intersect_triangle`, the oracle of both lane
+/// tests). The lane's f32 `u, v, w` and `δE` are the scalar test's (the packet test's
+/// are their negations, but for zero signs, and the condition is symmetric in sign).
+/// The scalar test rests on two bounds, against the edge functions `E` of the exactly
+/// translated and sheared corners: (1) `|e - E| <= δE*` for the f32 value `e`, `δE*`
+/// the bound's exact value (it is what lets the test trust the sign of `e` where `|e| >
+/// δE`); (2) the f64 edge before its rounding to f32 is within `2^-27 δE*` of `E` (see
+/// `F64_BOUND_RATIO` there). With `δE >= 2^-100` no term of the computed bound
+/// underflowed past a `2^-40` part of it, so with its few roundings `δE* <= (1 + 2^-20)
+/// δE`. A finite `e` had no overflow on its way (an infinite or NaN intermediate gives
+/// an infinite or NaN `e`). Then `e < -2 δE` gives `E < -2 δE + (1 + 2^-20) δE < -δE / 2`
+/// by (1), the f64 edge `< E + 2^-27 (1 + 2^-20) δE < -δE / 4 <= -2^-102` by (2), and
+/// its rounding to f32 (monotone, `-2^-102` is an f32) is negative: strictly, so not
+/// a zero. Likewise `e > 2 δE` gives a positive f64 edge. The scalar test, which takes
+/// its f64 branch for this lane (some `|e| <= δE`), so sees a negative and a positive
+/// edge function and returns `None` before anything else; the lane test sees `e < 0`
+/// and `e' > 0` among its f32 edges (`neg & pos`), so the lane is not `inside` and its
+/// hit bit is clear. NaN `δE` or edges fail the comparisons and stay in `edge`.
+#[inline(always)]
+fn certain_misses<L: Lanes>(u: L, v: L, w: L, delta_e: L) -> u32 {
+    let lim = delta_e + delta_e;
+    let neg_lim = L::splat(0.0) - lim;
+    let below = (u.lt(neg_lim) & u.is_finite())
+        | (v.lt(neg_lim) & v.is_finite())
+        | (w.lt(neg_lim) & w.is_finite());
+    let above =
+        (u.gt(lim) & u.is_finite()) | (v.gt(lim) & v.is_finite()) | (w.gt(lim) & w.is_finite());
+    (below & above & L::splat(CERTAIN_MISS_MIN_BOUND).le(delta_e)).bitmask()
+}
+
+/// `edge` (lanes with an edge function within `delta_e` of zero) less the lanes of
+/// [`certain_misses`].
+#[inline(always)]
+fn narrow_edge_lanes<L: Lanes>(edge: u32, u: L, v: L, w: L, delta_e: L) -> u32 {
+    let miss = certain_misses(u, v, w, delta_e);
+    #[cfg(test)]
+    NARROWED.with(|n| n.set(n.get() + (edge & miss).count_ones()));
+    edge & !miss
+}
+
+// Lanes taken out of `edge` by `narrow_edge_lanes` on this thread (for the tests).
+#[cfg(test)]
+thread_local! {
+    static NARROWED: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+}
+
 /// Lane twin of `geometry::triangle`'s `t_error_bound`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -156,7 +220,11 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
     // Lanes with an edge function within its error bound of zero: the scalar test
     // redoes those edges in f64.
     let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
-    let edge = (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & valid;
+    let mut edge =
+        (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & valid;
+    if edge != 0 {
+        edge = narrow_edge_lanes(edge, u, v, w, delta_e);
+    }
     if !(neg & pos).bitmask() & valid & !edge == 0 && edge == 0 {
         // every lane is outside its triangle: skip the division
         return ([0.0; 4], [0.0; 4], [0.0; 4], 0);
@@ -330,7 +398,11 @@ fn triangle_packet_by<L: Lanes>(
 
     let zero = L::splat(0.0);
     let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
-    let edge = (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & active;
+    let mut edge =
+        (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & active;
+    if edge != 0 {
+        edge = narrow_edge_lanes(edge, u, v, w, delta_e);
+    }
     let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
     let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
     let inside = !(neg & pos).bitmask() & active & !edge;
@@ -593,6 +665,112 @@ mod triangle_packet_tests {
         assert!(
             hits > 10_000 && zero_sign_lanes > 100_000,
             "too few cases: {hits} hits, {zero_sign_lanes} lanes with a zero translation of {compared}"
+        );
+    }
+
+    /// Rays aimed at points on the lines through a triangle's edges (on the edges, at
+    /// the corners and past them, where the other two edge functions have clear
+    /// opposite signs), in packets sharing an origin or not, with finite and short
+    /// intervals: the packet test (group form, as the BVH kernels run it) and the
+    /// single-ray `triangle4` give the scalar watertight test's answer for every lane
+    /// they decide (hit or miss, `t`, `u`, `v` bit for bit), hand no hit back with an
+    /// `edge` lane, and decide many lanes through `certain_misses` (counted), so the
+    /// narrowing is exercised and exact on the rays it exists for.
+    #[test]
+    fn lanes_near_edge_lines_are_the_scalar_answers() {
+        let mut next = crate::test_rng::xorshift64(0x9e37_79b9_7f4a_7c15);
+        let mut r = move || (next() >> 40) as f32 / (1u32 << 24) as f32;
+        NARROWED.with(|n| n.set(0));
+        let (mut decided, mut hits, mut edge_lanes, mut on_lines) = (0u32, 0u32, 0u32, 0u32);
+        for trial in 0..3000 {
+            let mut g = TriGroup4::EMPTY;
+            for lane in 0..4 {
+                let c = std::array::from_fn(|_| Vec3::new(r(), r(), r()) * 2.0 - Vec3::ONE);
+                g.set(lane, lane as u32, c);
+            }
+            let lane = trial % 4;
+            let [p0, p1, p2] = g.corners(lane);
+            let kz = trial % 3;
+            let sign = if trial % 7 < 3 { -1.0 } else { 1.0 };
+            let mut base = Vec3::new(r(), r(), r()) * 2.0 - Vec3::ONE;
+            base[kz] = -sign * 20.0;
+            let rays: [Ray; 16] = std::array::from_fn(|i| {
+                let (a, b) = [(p0, p1), (p1, p2), (p2, p0)][(i + trial) % 3];
+                let s = [-1.5, -0.25, 0.0, 0.5, 1.0, 1.3, 2.5, r() * 4.0 - 1.5][i % 8];
+                // and every eighth ray at a point inside the triangle, for hits
+                let aim = if i % 8 == 7 {
+                    let (x, y) = (r() * 0.5, r() * 0.5);
+                    p0 + (p1 - p0) * x + (p2 - p0) * y
+                } else {
+                    a + (b - a) * s
+                };
+                let o = if trial % 2 == 0 {
+                    base
+                } else {
+                    let mut o = base + Vec3::new(r(), r(), r());
+                    o[kz] = base[kz];
+                    o
+                };
+                let tmax = [f32::INFINITY, 40.0, 19.0 + r() * 2.0][i % 3];
+                Ray::segment(o, aim - o, 0.0, tmax)
+            });
+            let queries = rays.map(|r| RayQuery::new(&r).expect("valid ray"));
+            let perm = (queries[0].kx, queries[0].ky, queries[0].kz);
+            let lanes = |f: &dyn Fn(&Ray) -> f32| F16::from_array(rays.each_ref().map(f));
+            let o = [0, 1, 2].map(|a| lanes(&|r| r.origin[a]));
+            let d = [0, 1, 2].map(|a| lanes(&|r| r.dir[a]));
+            let shear = PacketShear::new(&d, F16::splat(1.0) / d[kz], perm);
+            let (tmin, tmax) = (lanes(&|r| r.tmin), lanes(&|r| r.tmax));
+            let (t, u, v, bits, edge) = triangle_packet(&o, tmin, &shear, &g, lane, tmax, 0xffff);
+            let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+            for (i, q) in queries.iter().enumerate() {
+                assert_eq!((q.kx, q.ky, q.kz), perm, "trial {trial}: one permutation");
+                on_lines += 1;
+                let scalar = intersect_triangle(q, p0, p1, p2, q.tmax);
+                if edge >> i & 1 == 1 {
+                    edge_lanes += 1;
+                    assert_eq!(bits >> i & 1, 0, "an edge lane is left to the scalar test");
+                } else {
+                    decided += 1;
+                    assert_eq!(
+                        bits >> i & 1 == 1,
+                        scalar.is_some(),
+                        "trial {trial} lane {i}"
+                    );
+                    if let Some(h) = scalar {
+                        hits += 1;
+                        assert_eq!(
+                            [t[i], u[i], v[i]].map(f32::to_bits),
+                            [h.t, h.u, h.v].map(f32::to_bits),
+                            "trial {trial} lane {i}"
+                        );
+                    }
+                }
+                // The single-ray test of the whole group, each lane against the oracle.
+                let (t4, u4, v4, bits4) = triangle4(q, &g, q.tmax);
+                for k in 0..4 {
+                    let [c0, c1, c2] = g.corners(k);
+                    let want = intersect_triangle(q, c0, c1, c2, q.tmax);
+                    assert_eq!(
+                        bits4 >> k & 1 == 1,
+                        want.is_some(),
+                        "trial {trial} ray {i} {k}"
+                    );
+                    if let Some(h) = want {
+                        assert_eq!(
+                            [t4[k], u4[k], v4[k]].map(f32::to_bits),
+                            [h.t, h.u, h.v].map(f32::to_bits),
+                            "trial {trial} ray {i} lane {k}"
+                        );
+                    }
+                }
+            }
+        }
+        let narrowed = NARROWED.with(|n| n.get());
+        assert!(
+            narrowed > on_lines / 2 && hits > on_lines / 20 && decided > on_lines / 2,
+            "too few cases: {narrowed} lanes narrowed, {hits} hits, {decided} decided, \
+             {edge_lanes} edge lanes of {on_lines}"
         );
     }
 }
