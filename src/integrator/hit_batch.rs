@@ -272,7 +272,7 @@ impl HitBatch {
         // No image texture in the scene: the uv of a lane hit is zero, written a
         // whole lane group at a time below rather than looked up hit by hit.
         let any_textured = scene.materials.iter().any(|m| !m.textures.is_empty());
-        let mut g = Gather::default();
+        let g = Gather;
         let mut sg = SphereGather::default();
         // Lanes of another kind, or past the last hit, keep stale values: lanes never
         // mix. Two buffers: each lane group's hit data is stored one lane group ahead
@@ -498,18 +498,16 @@ fn material_at(scene: &Scene, hit: &Option<SceneHit>) -> u32 {
     }
 }
 
-/// Scratch of the triangle lanes gathered from the mesh for [`triangle_surfaces`]
-/// where a lane group's triangle lanes hit several triangles: corner positions and raw
-/// vertex normals, component major (lanes of other kinds keep stale values: lanes
-/// never mix).
-#[derive(Default)]
+/// The triangle lanes' corner positions and raw vertex normals from the mesh for
+/// [`triangle_surfaces`] (lanes of other kinds hold zeros or stale values: lanes never
+/// mix). No scratch since the lanes are hardware gathers.
 struct Gather;
 
 impl Gather {
     /// The triangle hits of the lanes `mask` of `h` (rays `r`) on `mesh`.
     #[inline(always)]
     fn hits(
-        &mut self,
+        &self,
         mesh: &TriangleMesh,
         with_normals: bool,
         mask: u32,
