@@ -2,6 +2,32 @@
 
 use super::{HitFilter, QueryOptions, TraversalCounts};
 use crate::geometry::{Hit, Ray, RayPacket};
+use crate::simd::PACKET_WIDTH;
+
+/// A packet's closest hits as lanes ([`Accel::closest_hit_packet_lanes`]): lane `k` holds
+/// a hit (distance, barycentrics, primitive index) where bit `k` of `hit` is set; the
+/// other lanes' values are unspecified.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PacketHitLanes {
+    pub t: [f32; PACKET_WIDTH],
+    pub u: [f32; PACKET_WIDTH],
+    pub v: [f32; PACKET_WIDTH],
+    pub prim: [u32; PACKET_WIDTH],
+    pub hit: u32,
+}
+
+impl PacketHitLanes {
+    /// Lane `k`'s answer as [`closest_hit_packet`](Accel::closest_hit_packet) gives it.
+    #[inline(always)]
+    pub fn get(&self, k: usize) -> Option<Hit> {
+        (self.hit >> k & 1 == 1).then(|| Hit {
+            t: self.t[k],
+            prim: self.prim[k],
+            u: self.u[k],
+            v: self.v[k],
+        })
+    }
+}
 
 /// Closest-hit and any-hit queries over one primitive set.
 ///
@@ -58,6 +84,22 @@ pub trait Accel: Send + Sync {
     fn closest_hit_packet(&self, packet: &RayPacket, out: &mut [Option<Hit>]) {
         for (i, o) in out[..packet.len].iter_mut().enumerate() {
             *o = self.closest_hit(&packet.ray(i));
+        }
+    }
+
+    /// [`closest_hit_packet`](Self::closest_hit_packet)'s answers as lanes (bits of
+    /// `out.hit` only below `packet.len`), for a caller that keeps lanes: the wide BVHs
+    /// hand over their kernel's lanes, without the twenty-byte `Option<Hit>` written
+    /// lane by lane and read back with a branch per lane.
+    fn closest_hit_packet_lanes(&self, packet: &RayPacket, out: &mut PacketHitLanes) {
+        let mut hits = [None; PACKET_WIDTH];
+        self.closest_hit_packet(packet, &mut hits[..packet.len]);
+        out.hit = 0;
+        for (k, h) in hits[..packet.len].iter().enumerate() {
+            if let Some(h) = h {
+                (out.t[k], out.u[k], out.v[k], out.prim[k]) = (h.t, h.u, h.v, h.prim);
+                out.hit |= 1 << k;
+            }
         }
     }
 

@@ -3,7 +3,8 @@
 
 use super::scene_accel::closer;
 use super::{
-    Accel, AccelKind, Occluder, PrimRef, SceneAccel, SceneHit, TinyScratch, prefers_stream,
+    Accel, AccelKind, Occluder, PacketHitLanes, PrimRef, SceneAccel, SceneHit, TinyScratch,
+    prefers_stream,
 };
 use crate::geometry::{Hit, Ray};
 use crate::simd::PACKET_WIDTH;
@@ -292,20 +293,23 @@ fn put_hit(o: &mut Option<SceneHit>, h: Option<Hit>, prim: impl Fn(u32) -> PrimR
 /// with a function pointer, each hit was assembled on the stack around the call and
 /// read back as a whole, and that read held a third of this function's samples.
 ///
-/// Not done yet (issue 11, fr23b, 2026-11-29): the packet's hits handed over as lanes
-/// (t, u, v, prim and a hit bit each, the kernel's `PacketHits`) through an `Accel`
-/// method, so that neither the kernel writes the twenty-byte `Option<Hit>`s lane by
-/// lane nor `put` reads them back with a branch per lane. The wide BVHs cannot answer
-/// it from `tree.rs`: `packet_closest_lanes` and `PacketHits` are private to
-/// `bvhn/packet.rs`, and the public `closest_hit_packet_lanes` gives no `u`/`v`; it
-/// needs them reachable from `tree.rs` (`pub(super)`). Tried, no win, reverted (commit
-/// 190e389): the same pattern for occlusion, `Accel::any_hit_packet_bits` (the wide
-/// BVHs' kernel bits) written into `out` by [`any_packets`] instead of
-/// `any_hit_packet`'s `bool`s. Same answers; bunny 1024x1024, 1 thread, `ab.sh` render
-/// ms medians of 21 interleaved rounds, load 4.1-4.4, earlier binary / bits: 73.8 /
-/// 77.7, 71.3 / 75.4, (order swapped) 75.8 / 77.3; against `/tmp/base23` 71.7 / 74.8;
-/// 9 rounds 77.8 / 77.8. Minimums 62.5-64.0 either way: the bits save one byte store
-/// per lane, within this host's noise at best.
+/// The packet's hits come as lanes ([`Accel::closest_hit_packet_lanes`]: t, u, v,
+/// primitive and a hit bit each, the wide BVHs' kernel lanes as they are), so that
+/// neither the kernel writes the twenty-byte `Option<Hit>`s lane by lane nor `put`
+/// reads them back with a branch per lane (issue 11, bf24, 2026-11-29). Measured
+/// (perf record -e cpu-clock -F 10000, 5 bunny frames 1024x1024, 1 thread, AVX-512,
+/// load ~6, two interleaved rounds): the samples of `SceneAccel::closest_hit_batch`
+/// (this function inlined) and of the packet
+/// wrappers (`closest_hit_packet[_lanes]`, `any_hit_packet`, `any_packets`) 402 / 409
+/// before, 309 / 309 with the lanes, of 2,660-2,900 render-phase samples.
+///
+/// Tried, no win, reverted (commit 190e389, fr23b): the same pattern for occlusion,
+/// `Accel::any_hit_packet_bits` (the wide BVHs' kernel bits) written into `out` by
+/// [`any_packets`] instead of `any_hit_packet`'s `bool`s. Same answers; bunny
+/// 1024x1024, 1 thread, `ab.sh` render ms medians of 21 interleaved rounds, load
+/// 4.1-4.4, earlier binary / bits: 73.8 / 77.7, 71.3 / 75.4, (order swapped) 75.8 /
+/// 77.3; against `/tmp/base23` 71.7 / 74.8; 9 rounds 77.8 / 77.8. Minimums 62.5-64.0
+/// either way: the bits save one byte store per lane, within this host's noise at best.
 fn closest_packets(
     a: &dyn Accel,
     rays: &[Ray],
@@ -313,19 +317,29 @@ fn closest_packets(
     prim: impl Fn(u32) -> PrimRef + Copy,
     first: bool,
 ) {
-    let put = |o: &mut [Option<SceneHit>], hits: &[Option<Hit>; PACKET_WIDTH]| {
-        for (o, h) in o.iter_mut().zip(hits) {
-            put_hit(o, *h, prim, first);
+    // Lane `k` of `h` into `o[k]` as `put_hit` would write `h.get(k)`.
+    let put = |o: &mut [Option<SceneHit>], h: &PacketHitLanes| {
+        for (k, o) in o.iter_mut().enumerate() {
+            if h.hit >> k & 1 == 1 {
+                *o = Some(SceneHit {
+                    t: h.t[k],
+                    prim: prim(h.prim[k]),
+                    u: h.u[k],
+                    v: h.v[k],
+                });
+            } else if first {
+                *o = None;
+            }
         }
     };
-    let mut hits = [[None; PACKET_WIDTH]; 2];
+    let mut hits = [PacketHitLanes::default(); 2];
     let mut pending: Option<(&mut [Option<SceneHit>], usize)> = None;
     for (k, (r, o)) in rays
         .chunks(PACKET_WIDTH)
         .zip(out.chunks_mut(PACKET_WIDTH))
         .enumerate()
     {
-        a.closest_hit_packet(&packet_of_rays(r), &mut hits[k % 2][..r.len()]);
+        a.closest_hit_packet_lanes(&packet_of_rays(r), &mut hits[k % 2]);
         if let Some((o, b)) = pending.take() {
             put(o, &hits[b]);
         }
@@ -365,6 +379,7 @@ impl BatchScratch {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::RayPacket;
     use crate::scene::{Material, SceneBuilder, procedural};
     use glam::Vec3;
 
@@ -434,6 +449,76 @@ mod tests {
             assert!(
                 tri > 300 && sph > 300 && miss > 300,
                 "{kind}: too few of a kind to compare ({tri}, {sph}, {miss})"
+            );
+        }
+    }
+
+    /// `Accel::closest_hit_packet_lanes` answers what `closest_hit_packet` answers, lane
+    /// for lane and bit for bit (t, u, v, primitive), with no hit bit at or past the
+    /// packet's length: the wide BVHs' override (their kernel's lanes) and the trait's
+    /// default (a BVH2, a grid), for packets of every length from 1 to 16 cut from
+    /// camera-like rays with invalid lanes, ends early and misses among them.
+    #[test]
+    fn packet_hit_lanes_are_the_packet_answers() {
+        let mut b = SceneBuilder::new();
+        let m = b.add_material(Material::default());
+        procedural::tessellated_mesh(&mut b, 5_000, Vec3::ZERO, 1.0, m);
+        let scene = b.finish().expect("a valid scene");
+        let eye = Vec3::new(0.1, -0.05, 3.0);
+        let mut rays: Vec<Ray> = (0..40 * 30)
+            .map(|i| {
+                let (x, y) = ((i % 40) as f32 / 39.0, (i / 40) as f32 / 29.0);
+                let d = Vec3::new(x * 1.4 - 0.7, y * 1.4 - 0.7, -1.0).normalize();
+                match i % 23 {
+                    0 => Ray::new(eye, Vec3::ZERO),
+                    1 => Ray::segment(eye, d, 0.0, 2.5),
+                    _ => Ray::new(eye, d),
+                }
+            })
+            .collect();
+        rays[7].dir = Vec3::splat(f32::NAN);
+        for kind in [
+            AccelKind::Bvh4,
+            AccelKind::Bvh8,
+            AccelKind::Bvh4c,
+            AccelKind::Bvh8c,
+            AccelKind::Bvh2,
+            AccelKind::Grid,
+        ] {
+            let accel = SceneAccel::build(&scene, kind);
+            let a = accel.triangles.as_deref().expect("a triangle structure");
+            let (mut hits, mut misses) = (0, 0);
+            let mut start = 0;
+            for len in (1..=PACKET_WIDTH).cycle() {
+                if start + len > rays.len() {
+                    break;
+                }
+                let packet = RayPacket::from_rays(&rays[start..start + len]);
+                start += len;
+                let mut want = [None; PACKET_WIDTH];
+                a.closest_hit_packet(&packet, &mut want[..len]);
+                // Stale values in every lane first: only the hit lanes are read.
+                let mut got = PacketHitLanes {
+                    t: [7.0; PACKET_WIDTH],
+                    u: [7.0; PACKET_WIDTH],
+                    v: [7.0; PACKET_WIDTH],
+                    prim: [7; PACKET_WIDTH],
+                    hit: u32::MAX,
+                };
+                a.closest_hit_packet_lanes(&packet, &mut got);
+                assert_eq!(got.hit >> len, 0, "{kind}: hit bits past {len} lanes");
+                let bits = |h: Option<Hit>| {
+                    h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
+                };
+                for (k, w) in want[..len].iter().enumerate() {
+                    assert_eq!(bits(got.get(k)), bits(*w), "{kind}: lane {k} of {len}");
+                    hits += w.is_some() as usize;
+                    misses += w.is_none() as usize;
+                }
+            }
+            assert!(
+                hits > 200 && misses > 100,
+                "{kind}: {hits} hits, {misses} misses"
             );
         }
     }

@@ -26,7 +26,7 @@ use crate::simd::Lanes;
 use crate::simd::Packet;
 use crate::simd::kernels::RayLanes;
 use crate::simd::lanes3::V3;
-use crate::simd::ray_gather::gather_rays;
+use crate::simd::ray_gather::{gather_f32, gather_rays, gather_u32};
 use crate::simd::surface::{
     SphereHits, Surfaces, TriangleHits, sphere_surfaces, triangle_surfaces,
 };
@@ -272,7 +272,7 @@ impl HitBatch {
         // No image texture in the scene: the uv of a lane hit is zero, written a
         // whole lane group at a time below rather than looked up hit by hit.
         let any_textured = scene.materials.iter().any(|m| !m.textures.is_empty());
-        let mut g = Gather::default();
+        let g = Gather;
         let mut sg = SphereGather::default();
         // Lanes of another kind, or past the last hit, keep stale values: lanes never
         // mix. Two buffers: each lane group's hit data is stored one lane group ahead
@@ -498,21 +498,16 @@ fn material_at(scene: &Scene, hit: &Option<SceneHit>) -> u32 {
     }
 }
 
-/// Scratch of the triangle lanes gathered from the mesh for [`triangle_surfaces`]
-/// where a lane group's triangle lanes hit several triangles: corner positions and raw
-/// vertex normals, component major (lanes of other kinds keep stale values: lanes
-/// never mix).
-#[derive(Default)]
-struct Gather {
-    corners: [[[f32; LANES]; 3]; 3],
-    normals: [[[f32; LANES]; 3]; 3],
-}
+/// The triangle lanes' corner positions and raw vertex normals from the mesh for
+/// [`triangle_surfaces`] (lanes of other kinds hold zeros or stale values: lanes never
+/// mix). No scratch since the lanes are hardware gathers.
+struct Gather;
 
 impl Gather {
     /// The triangle hits of the lanes `mask` of `h` (rays `r`) on `mesh`.
     #[inline(always)]
     fn hits(
-        &mut self,
+        &self,
         mesh: &TriangleMesh,
         with_normals: bool,
         mask: u32,
@@ -535,8 +530,15 @@ impl Gather {
                 with_normals.then(|| [normal(i0), normal(i1), normal(i2)]),
             )
         } else {
-            // The arrays' pointers and lengths in locals, and the lanes walked in a
-            // plain loop. Before: a closure per lane that the compiler kept out of line,
+            // Hardware gathers (`gather_u32`, `gather_f32`): each lane group's sixteen
+            // corner indices, then each coordinate of the sixteen corners, loaded at
+            // once, where the lane loop before had a few lanes' loads in flight, each
+            // read waiting on a cache miss (the instruction after the index load held
+            // 11 % of `fill`'s samples, perf annotate, bunny 1024x1024, 1 thread,
+            // AVX-512).
+            //
+            // The lane loop (before): the arrays' pointers and lengths in locals, and
+            // the lanes walked in a plain loop. Before that: a closure per lane that the compiler kept out of line,
             // reloading each array from the mesh per read. Measured with the one-pass
             // split below (perf record -e cpu-clock, 3 x 3 bunny frames 1024x1024, 1
             // thread, interleaved, load ~6): `fill` with its gathers 286 -> 260
@@ -548,30 +550,22 @@ impl Gather {
             // 222 -> 252 samples in two interleaved rounds, `packet_closest` moving
             // -10 % and +10 % with the host (3 x 3 bunny frames each, load ~6): no
             // gain that the noise does not cover.
-            let ids = [&mesh.i0[..], &mesh.i1[..], &mesh.i2[..]];
+            let m = mask & 0xffff;
+            let vi = [
+                gather_u32(&mesh.i0, &h.prim, m),
+                gather_u32(&mesh.i1, &h.prim, m),
+                gather_u32(&mesh.i2, &h.prim, m),
+            ];
+            let at = |xyz: [&[f32]; 3], v: &[u32; LANES]| V3 {
+                x: gather_f32(xyz[0], v, m),
+                y: gather_f32(xyz[1], v, m),
+                z: gather_f32(xyz[2], v, m),
+            };
             let xyz = [&mesh.xs[..], &mesh.ys[..], &mesh.zs[..]];
             let nxyz = [&mesh.nxs[..], &mesh.nys[..], &mesh.nzs[..]];
-            let mut bits = mask;
-            while bits != 0 {
-                let l = bits.trailing_zeros() as usize & (LANES - 1);
-                bits &= bits - 1;
-                let t = h.prim[l] as usize;
-                for (c, ids) in ids.iter().enumerate() {
-                    let vi = ids[t] as usize;
-                    for (out, coords) in self.corners[c].iter_mut().zip(xyz) {
-                        out[l] = coords[vi];
-                    }
-                    if with_normals {
-                        for (out, coords) in self.normals[c].iter_mut().zip(nxyz) {
-                            out[l] = coords[vi];
-                        }
-                    }
-                }
-            }
-            let v3 = |a: &[[f32; LANES]; 3]| V3::load(&a[0], &a[1], &a[2]);
             (
-                self.corners.each_ref().map(v3),
-                with_normals.then(|| self.normals.each_ref().map(v3)),
+                [at(xyz, &vi[0]), at(xyz, &vi[1]), at(xyz, &vi[2])],
+                with_normals.then(|| [at(nxyz, &vi[0]), at(nxyz, &vi[1]), at(nxyz, &vi[2])]),
             )
         };
         TriangleHits {

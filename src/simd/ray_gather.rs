@@ -79,6 +79,103 @@ pub fn packet_of_rays(window: &[Ray]) -> RayPacket {
     }
 }
 
+/// `table[idx[l]]` in lane `l` for the lanes of `mask` (bits 0-15), zero in the others:
+/// with AVX-512 one masked hardware gather, all sixteen loads in flight at once. Every
+/// index under `mask` must be in bounds (checked: one out of bounds panics, as indexing
+/// does).
+#[inline(always)]
+pub fn gather_u32(table: &[u32], idx: &[u32; 16], mask: u32) -> [u32; 16] {
+    check_lanes(table.len(), idx, mask);
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    {
+        // SAFETY: every index under `mask` is below `table.len()` and below 2^31
+        // (checked above), and the other lanes load nothing.
+        unsafe { avx512::gather_u32(table.as_ptr(), idx, mask) }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+    {
+        let mut out = [0; 16];
+        for (l, o) in out.iter_mut().enumerate() {
+            if mask >> l & 1 == 1 {
+                *o = table[idx[l] as usize];
+            }
+        }
+        out
+    }
+}
+
+/// [`gather_u32`] of an `f32` table, as lanes.
+#[inline(always)]
+pub fn gather_f32(table: &[f32], idx: &[u32; 16], mask: u32) -> Packet {
+    check_lanes(table.len(), idx, mask);
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    {
+        // SAFETY: as in `gather_u32`.
+        unsafe { avx512::gather_f32(table.as_ptr(), idx, mask) }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+    {
+        let mut out = [0.0; 16];
+        for (l, o) in out.iter_mut().enumerate() {
+            if mask >> l & 1 == 1 {
+                *o = table[idx[l] as usize];
+            }
+        }
+        Packet::new(out)
+    }
+}
+
+/// Panics unless every `idx[l]` under `mask` is below `len` and below 2^31 (the
+/// hardware gathers' indices are signed).
+#[inline(always)]
+fn check_lanes(len: usize, idx: &[u32; 16], mask: u32) {
+    let limit = len.min(i32::MAX as usize) as u32;
+    let mut bad = 0u32;
+    for (l, &i) in idx.iter().enumerate() {
+        bad |= ((i >= limit) as u32) << l;
+    }
+    assert!(
+        bad & mask & 0xffff == 0,
+        "gather index out of bounds ({len})"
+    );
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+mod avx512 {
+    use super::Packet;
+    use std::arch::x86_64::*;
+
+    /// # Safety
+    /// Every `idx[l]` under `mask` must index `table`'s array and be below 2^31.
+    #[inline(always)]
+    pub unsafe fn gather_u32(table: *const u32, idx: &[u32; 16], mask: u32) -> [u32; 16] {
+        unsafe {
+            let vi = _mm512_loadu_si512(idx.as_ptr() as *const _);
+            let g = _mm512_mask_i32gather_epi32::<4>(
+                _mm512_setzero_si512(),
+                mask as __mmask16,
+                vi,
+                table as *const i32,
+            );
+            std::mem::transmute::<__m512i, [u32; 16]>(g)
+        }
+    }
+
+    /// # Safety
+    /// As [`gather_u32`].
+    #[inline(always)]
+    pub unsafe fn gather_f32(table: *const f32, idx: &[u32; 16], mask: u32) -> Packet {
+        unsafe {
+            let vi = _mm512_loadu_si512(idx.as_ptr() as *const _);
+            let g =
+                _mm512_mask_i32gather_ps::<4>(_mm512_setzero_ps(), mask as __mmask16, vi, table);
+            // SAFETY: `Packet` (`wide::f32x16`) is one `__m512` with AVX-512 (as in
+            // `simd::aperture`).
+            std::mem::transmute::<__m512, Packet>(g)
+        }
+    }
+}
+
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 mod avx2 {
     use super::super::ray_store::avx2::transpose;
@@ -87,6 +184,17 @@ mod avx2 {
 
     /// # Safety
     /// Every `idx[l]` must index a ray of the array at `rays`.
+    ///
+    /// Tried, no clear win, reverted (issue 11, bf24, 2026-11-29): with AVX-512 each
+    /// component's two 8-lane halves joined into one register (`_mm512_insertf64x4`)
+    /// before `packet_of_rays` stores it, so that the packet kernel's 64-byte loads of
+    /// the `RayPacket` read one store each instead of spanning two 32-byte stores (no
+    /// store forwarding: the first such load held 14-20 % of the bunny frame's
+    /// `closest_hit_packet_lanes` samples). The stall went away there, but the samples
+    /// of `SceneAccel::closest_hit_batch` and `closest_hit_packet_lanes` together
+    /// (perf record -e cpu-clock -F 10000, 5 bunny frames 1024x1024, 1 thread, load
+    /// 6-8, 4 interleaved rounds) were 227/236/276/238 joined against 242/245/251/264
+    /// as halves: 2-3 % of the wrappers, 0.2 % of the frame, inside the noise.
     #[inline(always)]
     pub unsafe fn gather(rays: *const Ray, idx: &[u32; 16]) -> (RayLanes<Packet>, Packet) {
         unsafe {
@@ -212,5 +320,54 @@ mod tests {
                 "window {start}..{end}"
             );
         }
+    }
+
+    /// The masked gathers give `table[idx[l]]` in every lane of the mask, bit for bit
+    /// (NaN and signed zeros among the values), and zero elsewhere, whatever the other
+    /// lanes' indices hold (out of bounds included), over many masks.
+    #[test]
+    fn masked_gathers_are_table_lookups() {
+        let mut next = xorshift64(0x1234_5678_9abc_def1);
+        let n = 1000;
+        let ints: Vec<u32> = (0..n).map(|_| next() as u32).collect();
+        let mut floats: Vec<f32> = (0..n).map(|_| f32::from_bits(next() as u32)).collect();
+        floats[3] = -0.0;
+        floats[4] = f32::NAN;
+        for round in 0..500 {
+            let mask = (next() as u32) & 0xffff | if round % 7 == 0 { 0xffff } else { 0 };
+            let idx: [u32; 16] = std::array::from_fn(|l| {
+                let i = (next() % n as u64) as u32;
+                // Lanes off the mask may index anything.
+                if mask >> l & 1 == 0 && l % 3 == 0 {
+                    u32::MAX - l as u32
+                } else {
+                    i
+                }
+            });
+            let got_u = gather_u32(&ints, &idx, mask);
+            let got_f = gather_f32(&floats, &idx, mask).to_array();
+            for l in 0..16 {
+                let on = mask >> l & 1 == 1;
+                let want_u = if on { ints[idx[l] as usize] } else { 0 };
+                let want_f = if on {
+                    floats[idx[l] as usize].to_bits()
+                } else {
+                    0
+                };
+                assert_eq!(got_u[l], want_u, "round {round} lane {l}");
+                assert_eq!(got_f[l].to_bits(), want_f, "round {round} lane {l}");
+            }
+        }
+    }
+
+    /// An index out of bounds under the mask panics (the gathers do not read past the
+    /// table).
+    #[test]
+    #[should_panic(expected = "out of bounds")]
+    fn masked_gather_checks_its_bounds() {
+        let table = [1.0f32; 10];
+        let mut idx = [0u32; 16];
+        idx[9] = 10;
+        gather_f32(&table, &idx, 1 << 9);
     }
 }

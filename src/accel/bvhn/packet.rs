@@ -19,14 +19,14 @@ use glam::Vec3;
 pub const PACKET_MIN_ACTIVE: u32 = 3;
 
 /// Per-lane answers of a packet group: lanes under the bits of `hit` hold a hit.
-struct PacketHits<L: Lanes> {
-    t: L,
-    u: L,
-    v: L,
+pub(super) struct PacketHits<L: Lanes> {
+    pub(super) t: L,
+    pub(super) u: L,
+    pub(super) v: L,
     /// Primitive ids as `f32` bit patterns (moved by blends only, never by arithmetic),
     /// so a hit updates every lane's id with one select instead of a loop over its bits.
-    prim: L,
-    hit: u32,
+    pub(super) prim: L,
+    pub(super) hit: u32,
 }
 
 /// `id` as the lane value of [`PacketHits::prim`].
@@ -70,7 +70,10 @@ where
     /// where bit `i` of `hit` is set (what [`packet_closest`](Self::packet_closest)
     /// writes as `Option<Hit>`s).
     #[inline(always)]
-    fn packet_closest_lanes<L: Lanes, R: LaneRays + ?Sized>(&self, rays: &R) -> PacketHits<L> {
+    pub(super) fn packet_closest_lanes<L: Lanes, R: LaneRays + ?Sized>(
+        &self,
+        rays: &R,
+    ) -> PacketHits<L> {
         let setup = PacketSetup::<L>::new(rays);
         // No valid lane (no group) also takes this path: no hit.
         if setup.groups == 0 || !setup.coherent() || self.stack_need >= PACKET_STACK {

@@ -8,7 +8,7 @@ use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
 use crate::accel::sah_build::build_tree_keeping_refs;
-use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, Primitives};
+use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, PacketHitLanes, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
@@ -374,6 +374,22 @@ where
 
     fn any_hit_packet(&self, packet: &RayPacket, out: &mut [bool]) {
         self.packet_any::<Packet, _>(packet, out);
+    }
+
+    /// The kernel's lanes as they are (no `Option<Hit>` per lane); the hit bits cut at
+    /// `packet.len` (lanes past it are invalid rays, which hit nothing anyway).
+    fn closest_hit_packet_lanes(&self, packet: &RayPacket, out: &mut PacketHitLanes) {
+        let h = self.packet_closest_lanes::<Packet, _>(packet);
+        out.t = h.t.to_array();
+        out.u = h.u.to_array();
+        out.v = h.v.to_array();
+        // A plain loop (one bit cast of the vector), not `array::map` (an out-of-line
+        // call in places: see `PacketBounds::triangle_candidates`).
+        let prim = h.prim.to_array();
+        for (o, p) in out.prim.iter_mut().zip(prim) {
+            *o = p.to_bits();
+        }
+        out.hit = h.hit & ((1u32 << packet.len) - 1);
     }
 
     fn info(&self) -> AccelInfo {
