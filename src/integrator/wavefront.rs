@@ -508,7 +508,7 @@ fn render_tile(
     let mut t = Instant::now();
     ws.pixels.clear();
     ws.blocks.clear();
-    // A tile of whole blocks whose pixels stay below the chunk's (the bunny's 16x16
+    // A tile of whole blocks whose pixels stay below the chunk's (the bunny's 32x32
     // tiles at one ray per pixel): the loop below would add every block and emit
     // once, at the end; its blocks and positions are written in one pass instead.
     if !whole_tile_blocks(
