@@ -218,8 +218,9 @@ mod tests {
     fn wavefront_estimate_scales_with_samples_and_workers() {
         let scene = dof_scene();
         let mut o = RenderOptions::from_scene(&scene);
-        o.width = 32;
-        o.height = 32;
+        // Four tiles.
+        o.width = 2 * TILE;
+        o.height = 2 * TILE;
         o.spp = 1024;
         o.samples.lens = 16;
         o.samples.shadow = 1;

@@ -14,9 +14,27 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-/// Tile edge in pixels: 256 pixels amortise rayon's per-task cost while leaving many
-/// tiles per thread for load balance on uneven scenes.
-pub(crate) const TILE: u32 = 16;
+/// Tile edge in pixels: 1024 pixels amortise rayon's per-task cost and the wavefront's
+/// per-wave costs while leaving many tiles per thread for load balance on uneven
+/// scenes (768 tiles at 1024x768).
+///
+/// Was 16 (256 pixels). In a tile of whitted_base the waves after the camera's are
+/// small (about 145 reflected and 145 refracted rays at depth one, fewer after), so
+/// each wave's fixed costs (material sort, stage timers, part-filled lane groups) weigh
+/// more; 32 holds four times the rays per wave, and a 32x32 tile at one ray per pixel
+/// still fits one camera batch (1,024 < 1,365 rays on the Whitted rows, 1,638 on the
+/// bunny). Measured (helper fr24, 2026-11-29) with a temporary build reading the edge
+/// from the environment, one binary, the render phase's process CPU time
+/// (`CLOCK_PROCESS_CPUTIME_ID` around `IntegratorKind::render`), 1 thread, AVX-512,
+/// interleaved rounds on a host loaded 6-7 by other builds (wall time meant nothing
+/// there), min/median ms: whitted_base 16: 54.5/55.3, 32: 52.2/52.3, 64: 52.4/52.7
+/// (5 rounds; waves of 16,384 paths instead of 8,192: 53.1 at 32, 53.9 at 64);
+/// bunny 1024x1024 50.8/51.9 -> 48.6/49.1 (5 rounds); whitted aa3x3 465.0/465.4 ->
+/// 457.0/458.7, area64 714.7/717.6 -> 707.8/712.7, blur16 858.0/874.6 -> 849.9/874.5
+/// (3 rounds each). At 2 threads whitted_base 55.1/55.9 -> 53.8/54.2 (both threads'
+/// CPU, 7 rounds). Images byte-identical (a pixel's sums do not depend on which
+/// tile or wave batch holds it).
+pub(crate) const TILE: u32 = 32;
 
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Tile {
