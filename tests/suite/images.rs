@@ -590,7 +590,7 @@ fn images_are_bit_identical_across_thread_counts_and_runs() {
 #[test]
 fn progress_reports_every_tile_once() {
     let scene = busy_scene();
-    let mut opts = options(&scene, 40, 36);
+    let mut opts = options(&scene, 72, 66);
     let calls = Arc::new(AtomicU64::new(0));
     let last_total = Arc::new(AtomicU64::new(0));
     let max_done = Arc::new(AtomicU64::new(0));
@@ -601,7 +601,7 @@ fn progress_reports_every_tile_once() {
         m.fetch_max(done, Ordering::Relaxed);
     }));
     render(&scene, &opts);
-    // 40x36 in 16x16 tiles: 3 x 3.
+    // 72x66 in 32x32 tiles: 3 x 3.
     assert_eq!(calls.load(Ordering::Relaxed), 9);
     assert_eq!(last_total.load(Ordering::Relaxed), 9);
     assert_eq!(max_done.load(Ordering::Relaxed), 9);
