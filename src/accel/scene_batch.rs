@@ -317,19 +317,11 @@ fn closest_packets(
     prim: impl Fn(u32) -> PrimRef + Copy,
     first: bool,
 ) {
-    // Lane `k` of `h` into `o[k]` as `put_hit` would write `h.get(k)`.
+    // Lane `k` of `h` into `o[k]` (`get` and `put_hit` inlined: no `Option<Hit>` is
+    // stored).
     let put = |o: &mut [Option<SceneHit>], h: &PacketHitLanes| {
         for (k, o) in o.iter_mut().enumerate() {
-            if h.hit >> k & 1 == 1 {
-                *o = Some(SceneHit {
-                    t: h.t[k],
-                    prim: prim(h.prim[k]),
-                    u: h.u[k],
-                    v: h.v[k],
-                });
-            } else if first {
-                *o = None;
-            }
+            put_hit(o, h.get(k), prim, first);
         }
     };
     let mut hits = [PacketHitLanes::default(); 2];
