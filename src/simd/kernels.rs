@@ -569,6 +569,34 @@ mod triangle_packet_tests {
     use super::*;
     use crate::simd::F16;
 
+    /// Sixteen rays as the packet test takes them, with their scalar queries.
+    struct InLanes {
+        queries: [RayQuery; 16],
+        /// The first query's axis permutation.
+        perm: (usize, usize, usize),
+        o: [F16; 3],
+        shear: PacketShear<F16>,
+        tmin: F16,
+        tmax: F16,
+    }
+
+    /// `rays` in lanes, sheared for the permutation of the first ray's query with the
+    /// depth axis `kz`.
+    fn in_lanes(rays: &[Ray; 16], kz: usize) -> InLanes {
+        let queries = rays.map(|r| RayQuery::new(&r).expect("valid ray"));
+        let perm = (queries[0].kx, queries[0].ky, queries[0].kz);
+        let lanes = |f: &dyn Fn(&Ray) -> f32| F16::from_array(rays.each_ref().map(f));
+        let d = [0, 1, 2].map(|a| lanes(&|r| r.dir[a]));
+        InLanes {
+            queries,
+            perm,
+            o: [0, 1, 2].map(|a| lanes(&|r| r.origin[a])),
+            shear: PacketShear::new(&d, F16::splat(1.0) / d[kz], perm),
+            tmin: lanes(&|r| r.tmin),
+            tmax: lanes(&|r| r.tmax),
+        }
+    }
+
     /// The packet triangle test (negated translations, `triangle_packet`) against the
     /// scalar watertight test, lane by lane, where the signs of zeros are at stake:
     /// corners and origins on a coarse grid of halves (so `p - o`, the sheared
@@ -624,13 +652,14 @@ mod triangle_packet_tests {
                 let tmax = [f32::INFINITY, 2.0, 0.5][i % 3];
                 Ray::segment(o, Vec3::from_array(d), 0.0, tmax)
             });
-            let queries = rays.map(|r| RayQuery::new(&r).expect("valid ray"));
-            let perm = (queries[0].kx, queries[0].ky, queries[0].kz);
-            let lanes = |f: &dyn Fn(&Ray) -> f32| F16::from_array(rays.each_ref().map(f));
-            let o = [0, 1, 2].map(|a| lanes(&|r| r.origin[a]));
-            let d = [0, 1, 2].map(|a| lanes(&|r| r.dir[a]));
-            let shear = PacketShear::new(&d, F16::splat(1.0) / d[kz], perm);
-            let (tmin, tmax) = (lanes(&|r| r.tmin), lanes(&|r| r.tmax));
+            let InLanes {
+                queries,
+                perm,
+                o,
+                shear,
+                tmin,
+                tmax,
+            } = in_lanes(&rays, kz);
             let active = 0xffff;
             let (t, u, v, bits, edge) =
                 triangle_packet_corners(&o, tmin, &shear, &corners, tmax, active);
@@ -714,13 +743,14 @@ mod triangle_packet_tests {
                 let tmax = [f32::INFINITY, 40.0, 19.0 + r() * 2.0][i % 3];
                 Ray::segment(o, aim - o, 0.0, tmax)
             });
-            let queries = rays.map(|r| RayQuery::new(&r).expect("valid ray"));
-            let perm = (queries[0].kx, queries[0].ky, queries[0].kz);
-            let lanes = |f: &dyn Fn(&Ray) -> f32| F16::from_array(rays.each_ref().map(f));
-            let o = [0, 1, 2].map(|a| lanes(&|r| r.origin[a]));
-            let d = [0, 1, 2].map(|a| lanes(&|r| r.dir[a]));
-            let shear = PacketShear::new(&d, F16::splat(1.0) / d[kz], perm);
-            let (tmin, tmax) = (lanes(&|r| r.tmin), lanes(&|r| r.tmax));
+            let InLanes {
+                queries,
+                perm,
+                o,
+                shear,
+                tmin,
+                tmax,
+            } = in_lanes(&rays, kz);
             let (t, u, v, bits, edge) = triangle_packet(&o, tmin, &shear, &g, lane, tmax, 0xffff);
             let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
             for (i, q) in queries.iter().enumerate() {
