@@ -1372,6 +1372,17 @@ fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, 
 /// each writes its part of both sides with the same kernel, to the same places the
 /// serial loop would.
 ///
+/// Tried, no change (issue 12, session 24): the parallel partition only where the levels
+/// above leave threads idle (`1 << depth < threads`: at 2 threads the root alone), on
+/// the guess that its two passes (count, then write) double the work where as many
+/// subtrees as threads are built at once. Same trees; `build_time 1000000 7 2`, 3
+/// interleaved rounds, quiet: wall medians 197.1 / 204.2 / 187.6 ms before, 195.9 /
+/// 197.8 / 192.5 after; CPU 339.6 / 362.1 / 333.9 against 347.5 / 345.1 / 340.4. The 2-thread
+/// build's extra ~80 CPU ms (255 -> 337 against 1 thread) and its 1.30x speed-up
+/// (Embree's: 1.92x) come from elsewhere; a timeline of `perf script` samples put ~50
+/// ms of each 2-thread build on one thread after the collapse (page faults of fresh
+/// arrays, `Bvh::build`'s final copy, the build tree's drop).
+///
 /// Dead end, measured at 1 thread on 10^6 triangles (perf): the previous loop stored
 /// each reference twice (to the next left and the next right slot), indexed the
 /// centroid by a run-time axis (through the stack) and kept its bounds and cursor on
