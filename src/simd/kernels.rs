@@ -159,17 +159,22 @@ fn certain_misses<L: Lanes>(u: L, v: L, w: L, delta_e: L) -> u32 {
     (below & above & L::splat(CERTAIN_MISS_MIN_BOUND).le(delta_e)).bitmask()
 }
 
-/// `edge` (lanes with an edge function within `delta_e` of zero) less the lanes of
-/// [`certain_misses`].
+/// The lanes of `mask` that the lane tests hand to the scalar test: an edge function
+/// within `delta_e` of zero, less the lanes of [`certain_misses`] (computed only where
+/// some lane is near an edge).
 #[inline(always)]
-fn narrow_edge_lanes<L: Lanes>(edge: u32, u: L, v: L, w: L, delta_e: L) -> u32 {
+fn uncertain_edges<L: Lanes>(u: L, v: L, w: L, delta_e: L, mask: u32) -> u32 {
+    let edge = (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & mask;
+    if edge == 0 {
+        return 0;
+    }
     let miss = certain_misses(u, v, w, delta_e);
     #[cfg(test)]
     NARROWED.with(|n| n.set(n.get() + (edge & miss).count_ones()));
     edge & !miss
 }
 
-// Lanes taken out of `edge` by `narrow_edge_lanes` on this thread (for the tests).
+// Lanes taken out of `edge` by `uncertain_edges` on this thread (for the tests).
 #[cfg(test)]
 thread_local! {
     static NARROWED: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
@@ -220,11 +225,7 @@ fn triangle4(q: &RayQuery, g: &TriGroup4, tmax: f32) -> ([f32; 4], [f32; 4], [f3
     // Lanes with an edge function within its error bound of zero: the scalar test
     // redoes those edges in f64.
     let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
-    let mut edge =
-        (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & valid;
-    if edge != 0 {
-        edge = narrow_edge_lanes(edge, u, v, w, delta_e);
-    }
+    let edge = uncertain_edges(u, v, w, delta_e, valid);
     if !(neg & pos).bitmask() & valid & !edge == 0 && edge == 0 {
         // every lane is outside its triangle: skip the division
         return ([0.0; 4], [0.0; 4], [0.0; 4], 0);
@@ -398,11 +399,7 @@ fn triangle_packet_by<L: Lanes>(
 
     let zero = L::splat(0.0);
     let delta_e = edge_error_bound(ax, ay, bx, by, cx, cy, a_z, b_z, c_z);
-    let mut edge =
-        (u.abs().le(delta_e) | v.abs().le(delta_e) | w.abs().le(delta_e)).bitmask() & active;
-    if edge != 0 {
-        edge = narrow_edge_lanes(edge, u, v, w, delta_e);
-    }
+    let edge = uncertain_edges(u, v, w, delta_e, active);
     let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
     let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
     let inside = !(neg & pos).bitmask() & active & !edge;
@@ -580,6 +577,26 @@ mod triangle_packet_tests {
         tmax: F16,
     }
 
+    /// Asserts that a lane's answer (its hit bit, and for a hit `t`, `u`, `v` bit for bit)
+    /// is the scalar test's; `at` names the lane in a failure. Returns whether it hit.
+    fn assert_lane_answer(
+        hit: bool,
+        tuv: [f32; 3],
+        scalar: Option<PrimHit>,
+        at: impl Fn() -> String,
+    ) -> bool {
+        assert_eq!(hit, scalar.is_some(), "{}", at());
+        if let Some(h) = scalar {
+            assert_eq!(
+                tuv.map(f32::to_bits),
+                [h.t, h.u, h.v].map(f32::to_bits),
+                "{}",
+                at()
+            );
+        }
+        scalar.is_some()
+    }
+
     /// `rays` in lanes, sheared for the permutation of the first ray's query with the
     /// depth axis `kz`.
     fn in_lanes(rays: &[Ray; 16], kz: usize) -> InLanes {
@@ -675,19 +692,11 @@ mod triangle_packet_tests {
                 zero_sign_lanes +=
                     u32::from((0..3).any(|a| corners.iter().any(|c| c[a] == q.origin[a])));
                 let scalar = intersect_triangle(q, p0, p1, p2, q.tmax);
-                assert_eq!(
-                    bits >> i & 1 == 1,
-                    scalar.is_some(),
-                    "trial {trial} lane {i}"
-                );
-                if let Some(h) = scalar {
+                let tuv = [t[i], u[i], v[i]];
+                if assert_lane_answer(bits >> i & 1 == 1, tuv, scalar, || {
+                    format!("trial {trial} lane {i}")
+                }) {
                     hits += 1;
-                    let lane = [t[i], u[i], v[i]].map(f32::to_bits);
-                    assert_eq!(
-                        lane,
-                        [h.t, h.u, h.v].map(f32::to_bits),
-                        "trial {trial} lane {i}"
-                    );
                 }
             }
         }
@@ -762,18 +771,11 @@ mod triangle_packet_tests {
                     assert_eq!(bits >> i & 1, 0, "an edge lane is left to the scalar test");
                 } else {
                     decided += 1;
-                    assert_eq!(
-                        bits >> i & 1 == 1,
-                        scalar.is_some(),
-                        "trial {trial} lane {i}"
-                    );
-                    if let Some(h) = scalar {
+                    let tuv = [t[i], u[i], v[i]];
+                    if assert_lane_answer(bits >> i & 1 == 1, tuv, scalar, || {
+                        format!("trial {trial} lane {i}")
+                    }) {
                         hits += 1;
-                        assert_eq!(
-                            [t[i], u[i], v[i]].map(f32::to_bits),
-                            [h.t, h.u, h.v].map(f32::to_bits),
-                            "trial {trial} lane {i}"
-                        );
                     }
                 }
                 // The single-ray test of the whole group, each lane against the oracle.
@@ -781,18 +783,9 @@ mod triangle_packet_tests {
                 for k in 0..4 {
                     let [c0, c1, c2] = g.corners(k);
                     let want = intersect_triangle(q, c0, c1, c2, q.tmax);
-                    assert_eq!(
-                        bits4 >> k & 1 == 1,
-                        want.is_some(),
-                        "trial {trial} ray {i} {k}"
-                    );
-                    if let Some(h) = want {
-                        assert_eq!(
-                            [t4[k], u4[k], v4[k]].map(f32::to_bits),
-                            [h.t, h.u, h.v].map(f32::to_bits),
-                            "trial {trial} ray {i} lane {k}"
-                        );
-                    }
+                    assert_lane_answer(bits4 >> k & 1 == 1, [t4[k], u4[k], v4[k]], want, || {
+                        format!("trial {trial} ray {i} lane {k}")
+                    });
                 }
             }
         }
