@@ -9,6 +9,7 @@ use super::{
 use crate::geometry::{Hit, Ray};
 use crate::simd::PACKET_WIDTH;
 use crate::simd::ray_gather::packet_of_rays;
+use crate::simd::ray_store::store_hit_records;
 
 impl SceneAccel {
     /// Closest hits for a batch of rays, through each kind's batch entry point (BVH4:
@@ -317,9 +318,19 @@ fn closest_packets(
     prim: impl Fn(u32) -> PrimRef + Copy,
     first: bool,
 ) {
+    // The tag of `prim`'s hits where the packet's answers can be stored as whole
+    // records ([`put_records`]): the first set searched, on triangles or spheres.
+    let tag = match (first, prim(0), prim(1)) {
+        (true, PrimRef::Triangle(0), PrimRef::Triangle(1)) => Some(PrimRef::TRIANGLE_TAG),
+        (true, PrimRef::Sphere(0), PrimRef::Sphere(1)) => Some(PrimRef::SPHERE_TAG),
+        _ => None,
+    };
     // Lane `k` of `h` into `o[k]` (`get` and `put_hit` inlined: no `Option<Hit>` is
-    // stored).
+    // stored), a whole packet's at once where it can.
     let put = |o: &mut [Option<SceneHit>], h: &PacketHitLanes| {
+        if let (Some(tag), Ok(o)) = (tag, <&mut [_; PACKET_WIDTH]>::try_from(&mut *o)) {
+            return put_records(o, h, tag);
+        }
         for (k, o) in o.iter_mut().enumerate() {
             put_hit(o, h.get(k), prim, first);
         }
@@ -339,6 +350,36 @@ fn closest_packets(
     }
     if let Some((o, b)) = pending {
         put(o, &hits[b]);
+    }
+}
+
+/// A whole packet's answers `h` into `o` as [`put_hit`] writes them for the first set
+/// searched, on the set whose [`PrimRef`] tag is `tag`: the sixteen hits stored as
+/// records ([`store_hit_records`]: `t`, tag, index, a spare word, `u`, `v`, the layout
+/// asserted in `scene_hit`), then `None` written over the lanes that missed; a packet
+/// that hits nothing is sixteen `None`s.
+///
+/// Before: `put_hit` lane by lane, a branch on the lane's hit bit and five scalar
+/// stores (tag, index, `t`, `u`, `v`) per lane: 28 % of the samples of
+/// `SceneAccel::closest_hit_batch` (perf annotate, bunny 1024x1024, 1 thread,
+/// AVX-512), which was 5 % of the render phase.
+#[inline(always)]
+fn put_records(o: &mut [Option<SceneHit>; PACKET_WIDTH], h: &PacketHitLanes, tag: u32) {
+    let hit = h.hit & 0xffff;
+    if hit == 0 {
+        o.fill(None);
+        return;
+    }
+    // SAFETY: `o` is sixteen 24-byte `Option<SceneHit>`s, 96 words, written whole.
+    // Each record is a valid `SceneHit` (any bits in the floats and the index, a
+    // primitive tag, the spare word being padding of that variant), which is, byte for
+    // byte, the `Some` holding it (asserted in `scene_hit`: `Option<SceneHit>` is as
+    // large as `SceneHit`, so `None` lies in a niche no valid `SceneHit` has).
+    unsafe { store_hit_records((&h.t, &h.u, &h.v), &h.prim, tag, o.as_mut_ptr().cast()) };
+    let mut miss = !hit & 0xffff;
+    while miss != 0 {
+        o[miss.trailing_zeros() as usize] = None;
+        miss &= miss - 1;
     }
 }
 
@@ -442,6 +483,57 @@ mod tests {
                 tri > 300 && sph > 300 && miss > 300,
                 "{kind}: too few of a kind to compare ({tri}, {sph}, {miss})"
             );
+        }
+    }
+
+    /// `put_records` writes what `put_hit` writes lane by lane for the first set
+    /// searched (the same `Option<SceneHit>` in every lane, compared whole), on
+    /// triangles and on spheres, for packets that hit nothing, everything, and mixes,
+    /// with stale values in the lanes that missed; the entries start as other hits.
+    #[test]
+    fn packet_records_are_the_lane_answers() {
+        let mut next = crate::test_rng::xorshift64(41);
+        let mut f = || f32::from_bits((next() >> 32) as u32 & 0x7fbf_ffff) - 1e-3;
+        for case in 0..60u32 {
+            let hit = match case % 5 {
+                0 => 0,
+                1 => 0xffff,
+                2 => 0x8001,
+                _ => case.wrapping_mul(0x9e37_79b9) >> 16,
+            };
+            let h = PacketHitLanes {
+                t: std::array::from_fn(|_| f()),
+                u: std::array::from_fn(|_| f()),
+                v: std::array::from_fn(|_| f()),
+                prim: std::array::from_fn(|k| case * 1000 + k as u32 * 7),
+                hit: hit | if case % 7 == 0 { 0xffff_0000 } else { 0 },
+            };
+            type Ctor = fn(u32) -> PrimRef;
+            for (tag, prim) in [
+                (PrimRef::TRIANGLE_TAG, PrimRef::Triangle as Ctor),
+                (PrimRef::SPHERE_TAG, PrimRef::Sphere as Ctor),
+            ] {
+                let stale = Some(SceneHit {
+                    t: 9.0,
+                    prim: PrimRef::Instance {
+                        instance: 3,
+                        prim: 4,
+                    },
+                    u: 0.5,
+                    v: 0.25,
+                });
+                let mut got = [stale; PACKET_WIDTH];
+                put_records(&mut got, &h, tag);
+                for (k, g) in got.iter().enumerate() {
+                    let mut want = stale;
+                    put_hit(&mut want, h.get(k), prim, true);
+                    let bits = |x: Option<SceneHit>| {
+                        x.map(|x| (x.t.to_bits(), x.prim, x.u.to_bits(), x.v.to_bits()))
+                    };
+                    assert_eq!(bits(*g), bits(want), "case {case} tag {tag} lane {k}");
+                    assert_eq!(g.is_some(), hit >> k & 1 == 1);
+                }
+            }
         }
     }
 

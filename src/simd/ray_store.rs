@@ -205,6 +205,62 @@ pub fn append_plain(o: [&[f32]; 3], d: [&[f32]; 3], t: &[f32], n: usize, out: &m
     }));
 }
 
+/// Sixteen records of six 32-bit words from lanes: record `i` is `[t[i], tag, prim[i],
+/// 0, u[i], v[i]]` (floats as their bits), written from `dst` on, 96 words in a row.
+/// The scene-level hit (`accel::SceneHit`, `repr(C)`: `t`, the `repr(u32)` primitive
+/// tag and index and a spare word, `u`, `v`) of a packet's sixteen lanes, in place of
+/// the twenty scalar stores per lane of building each `Option<SceneHit>` on its own.
+///
+/// With AVX-512: six 64-byte windows, each merged from the pairs `(t, prim)` and `(u,
+/// v)` by two masked two-source permutes and the tag by a masked move (the tables of
+/// [`avx512::hit_records`], as [`append_rays`] builds its windows).
+///
+/// # Safety
+/// `dst` must be valid for writes of 96 `u32`s.
+#[inline(always)]
+pub unsafe fn store_hit_records(
+    (t, u, v): (&[f32; 16], &[f32; 16], &[f32; 16]),
+    prim: &[u32; 16],
+    tag: u32,
+    dst: *mut u32,
+) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+    // SAFETY: the caller's contract.
+    unsafe {
+        avx512::hit_records([t, u, v], prim, tag, dst)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+    // SAFETY: the caller's contract: words `0..96` from `dst`.
+    unsafe {
+        hit_records_plain((t, u, v), prim, tag, dst)
+    }
+}
+
+/// The plain loop of [`store_hit_records`], word by word: its reference (and the path
+/// without AVX-512).
+///
+/// # Safety
+/// `dst` must be valid for writes of 96 `u32`s.
+pub unsafe fn hit_records_plain(
+    (t, u, v): (&[f32; 16], &[f32; 16], &[f32; 16]),
+    prim: &[u32; 16],
+    tag: u32,
+    dst: *mut u32,
+) {
+    for i in 0..16 {
+        let record = [
+            t[i].to_bits(),
+            tag,
+            prim[i],
+            0,
+            u[i].to_bits(),
+            v[i].to_bits(),
+        ];
+        // SAFETY: words `6 i..6 i + 6 <= 96` from `dst` (the caller's contract).
+        unsafe { dst.add(6 * i).cast::<[u32; 6]>().write_unaligned(record) };
+    }
+}
+
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 pub(super) mod avx2 {
     use std::arch::x86_64::*;
@@ -365,6 +421,69 @@ mod avx512 {
                         _mm512_mask_storeu_ps(p, mask, w);
                     }
                 }
+            }
+        }
+    }
+
+    /// The tables of [`hit_records`], per window `k` of the sixteen six-word records
+    /// (word `p` is field `p % 6` of record `p / 6`): `INDEX[k]` holds, in the lanes of
+    /// `t` and `prim`, the two-source permute index of that lane (`r`, `16 + r`), in the
+    /// lanes of `u` and `v` likewise, zero elsewhere; `MASKS[k]` the masks of the lanes of
+    /// `(t, prim)`, of `(u, v)` and of the tag.
+    const HIT_TABLES: ([[u32; 16]; 6], [[u16; 3]; 6]) = {
+        let mut index = [[0u32; 16]; 6];
+        let mut masks = [[0u16; 3]; 6];
+        let mut k = 0;
+        while k < 6 {
+            let mut lane = 0;
+            while lane < 16 {
+                let p = 16 * k + lane;
+                let (r, c) = ((p / 6) as u32, p % 6);
+                match c {
+                    0 | 2 => {
+                        index[k][lane] = r + 16 * (c == 2) as u32;
+                        masks[k][0] |= 1 << lane;
+                    }
+                    4 | 5 => {
+                        index[k][lane] = r + 16 * (c == 5) as u32;
+                        masks[k][1] |= 1 << lane;
+                    }
+                    1 => masks[k][2] |= 1 << lane,
+                    _ => {}
+                }
+                lane += 1;
+            }
+            k += 1;
+        }
+        (index, masks)
+    };
+
+    /// [`store_hit_records`](super::store_hit_records): each window starts from its
+    /// index lanes (zero in the spare word's), takes `(t, prim)` and `(u, v)` by masked
+    /// two-source permutes (`vpermi2d`: lanes outside the mask keep the index
+    /// operand's bits) and the tag by a masked move.
+    ///
+    /// # Safety
+    /// `dst` must be valid for writes of 96 `u32`s.
+    #[inline(always)]
+    pub(super) unsafe fn hit_records(
+        [t, u, v]: [&[f32; 16]; 3],
+        prim: &[u32; 16],
+        tag: u32,
+        dst: *mut u32,
+    ) {
+        unsafe {
+            let ld = |a: &[f32; 16]| _mm512_castps_si512(_mm512_loadu_ps(a.as_ptr()));
+            let (t, u, v) = (ld(t), ld(u), ld(v));
+            let prim = _mm512_loadu_si512(prim.as_ptr().cast());
+            let tag = _mm512_set1_epi32(tag as i32);
+            let (index, masks) = &HIT_TABLES;
+            for k in 0..6 {
+                let w = _mm512_loadu_si512(index[k].as_ptr().cast());
+                let w = _mm512_mask2_permutex2var_epi32(t, w, masks[k][0], prim);
+                let w = _mm512_mask2_permutex2var_epi32(u, w, masks[k][1], v);
+                let w = _mm512_mask_mov_epi32(w, masks[k][2], tag);
+                _mm512_storeu_si512(dst.add(16 * k).cast(), w);
             }
         }
     }
@@ -576,6 +695,38 @@ mod tests {
                 );
                 assert_stores(&want, n, |got| store.append([&d[0], &d[1], &d[2]], n, got));
             }
+        }
+    }
+
+    /// [`store_hit_records`] writes the plain loop's 96 words bit for bit (special
+    /// values among the floats, any index and tag), every word of the sixteen records
+    /// (a sentinel-filled array, compared whole).
+    #[test]
+    fn hit_records_equal_the_plain_loop() {
+        let mut rng = PixelRng::new(3, 17);
+        let mut draw = || component(&mut rng);
+        for case in 0..50u32 {
+            let a = seven_lanes(&mut draw);
+            let prim: [u32; 16] = std::array::from_fn(|i| a[3][i].to_bits() ^ case);
+            let tag = [0, 1, 5, u32::MAX][case as usize % 4];
+            let (mut got, mut want) = ([0xdead_beef_u32; 96], [0x1234_5678_u32; 96]);
+            // SAFETY: both arrays hold 96 words.
+            unsafe {
+                store_hit_records((&a[0], &a[1], &a[2]), &prim, tag, got.as_mut_ptr());
+                hit_records_plain((&a[0], &a[1], &a[2]), &prim, tag, want.as_mut_ptr());
+            }
+            assert_eq!(got, want, "case {case}");
+            assert_eq!(
+                want[6 * 5..6 * 6],
+                [
+                    a[0][5].to_bits(),
+                    tag,
+                    prim[5],
+                    0,
+                    a[1][5].to_bits(),
+                    a[2][5].to_bits()
+                ]
+            );
         }
     }
 
