@@ -26,7 +26,7 @@ use crate::simd::Lanes;
 use crate::simd::Packet;
 use crate::simd::kernels::RayLanes;
 use crate::simd::lanes3::V3;
-use crate::simd::ray_gather::{gather_f32, gather_rays, gather_u32};
+use crate::simd::ray_gather::{gather_f32x3, gather_rays, gather_u32};
 use crate::simd::surface::{
     SphereHits, Surfaces, TriangleHits, sphere_surfaces, triangle_surfaces,
 };
@@ -527,7 +527,12 @@ impl Gather {
             let normal = |vi: u32| V3::splat(raw_normal(vi));
             (
                 [V3::splat(c0), V3::splat(c1), V3::splat(c2)],
-                with_normals.then(|| [normal(i0), normal(i1), normal(i2)]),
+                // An `if`, not `bool::then`: its closure stayed out of line.
+                if with_normals {
+                    Some([normal(i0), normal(i1), normal(i2)])
+                } else {
+                    None
+                },
             )
         } else {
             // Hardware gathers (`gather_u32`, `gather_f32`): each lane group's sixteen
@@ -556,16 +561,26 @@ impl Gather {
                 gather_u32(&mesh.i1, &h.prim, m),
                 gather_u32(&mesh.i2, &h.prim, m),
             ];
-            let at = |xyz: [&[f32]; 3], v: &[u32; LANES]| V3 {
-                x: gather_f32(xyz[0], v, m),
-                y: gather_f32(xyz[1], v, m),
-                z: gather_f32(xyz[2], v, m),
-            };
+            // Not a closure: that stayed out of line, six calls per lane group
+            // (`gather_f32x3`).
+            #[inline(always)]
+            fn at(xyz: [&[f32]; 3], v: &[u32; LANES], m: u32) -> V3 {
+                let [x, y, z] = gather_f32x3(xyz, v, m);
+                V3 { x, y, z }
+            }
             let xyz = [&mesh.xs[..], &mesh.ys[..], &mesh.zs[..]];
             let nxyz = [&mesh.nxs[..], &mesh.nys[..], &mesh.nzs[..]];
             (
-                [at(xyz, &vi[0]), at(xyz, &vi[1]), at(xyz, &vi[2])],
-                with_normals.then(|| [at(nxyz, &vi[0]), at(nxyz, &vi[1]), at(nxyz, &vi[2])]),
+                [at(xyz, &vi[0], m), at(xyz, &vi[1], m), at(xyz, &vi[2], m)],
+                if with_normals {
+                    Some([
+                        at(nxyz, &vi[0], m),
+                        at(nxyz, &vi[1], m),
+                        at(nxyz, &vi[2], m),
+                    ])
+                } else {
+                    None
+                },
             )
         };
         TriangleHits {
