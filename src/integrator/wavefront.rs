@@ -676,11 +676,18 @@ fn whole_tile_blocks(
     }
     unresolved.reserve(n);
     let spare = &mut unresolved.spare_capacity_mut()[..n];
+    // A block's sixteen positions as one vector addition and one 64-byte store. Written
+    // lane by lane, the compiler vectorised the loop across blocks instead, as sixteen
+    // `vpscatterqd` per four blocks (a scatter per lane, each writing four blocks 64
+    // bytes apart): 60 % of `render_tile`'s own samples (perf annotate, bunny
+    // 1024x1024, 1 thread, AVX-512).
+    let lanes = wide::u32x16::new(*tile_lanes);
     for (dst, &(bx, by)) in spare.chunks_exact_mut(16).zip(&blocks[first..]) {
         let base = (by - tile.y0) * w + (bx - tile.x0);
-        for (d, &l) in dst.iter_mut().zip(tile_lanes) {
-            d.write(base + l);
-        }
+        let v = (wide::u32x16::splat(base) + lanes).to_array();
+        // SAFETY: `dst` is sixteen `MaybeUninit<u32>` (a chunk of 16), written whole
+        // by one unaligned store of sixteen `u32`s.
+        unsafe { dst.as_mut_ptr().cast::<[u32; 16]>().write_unaligned(v) };
     }
     // SAFETY: the `n / 16` blocks listed above each wrote their chunk of 16 of the
     // `n` spare elements after the length, every chunk once.
