@@ -326,15 +326,23 @@ fn closest_packets(
         _ => None,
     };
     // Lane `k` of `h` into `o[k]` (`get` and `put_hit` inlined: no `Option<Hit>` is
-    // stored), a whole packet's at once where it can.
-    let put = |o: &mut [Option<SceneHit>], h: &PacketHitLanes| {
+    // stored), a whole packet's at once where it can. A function, not a closure: with
+    // the two paths the closure was kept out of line, a call per packet.
+    #[inline(always)]
+    fn put(
+        o: &mut [Option<SceneHit>],
+        h: &PacketHitLanes,
+        tag: Option<u32>,
+        prim: impl Fn(u32) -> PrimRef + Copy,
+        first: bool,
+    ) {
         if let (Some(tag), Ok(o)) = (tag, <&mut [_; PACKET_WIDTH]>::try_from(&mut *o)) {
             return put_records(o, h, tag);
         }
         for (k, o) in o.iter_mut().enumerate() {
             put_hit(o, h.get(k), prim, first);
         }
-    };
+    }
     let mut hits = [PacketHitLanes::default(); 2];
     let mut pending: Option<(&mut [Option<SceneHit>], usize)> = None;
     for (k, (r, o)) in rays
@@ -344,12 +352,12 @@ fn closest_packets(
     {
         a.closest_hit_packet_lanes(&packet_of_rays(r), &mut hits[k % 2]);
         if let Some((o, b)) = pending.take() {
-            put(o, &hits[b]);
+            put(o, &hits[b], tag, prim, first);
         }
         pending = Some((o, k % 2));
     }
     if let Some((o, b)) = pending {
-        put(o, &hits[b]);
+        put(o, &hits[b], tag, prim, first);
     }
 }
 
