@@ -538,17 +538,30 @@ pub fn incoherent_batch(rays: &[Ray]) -> bool {
     if rays.len() < STREAM_MIN_BATCH {
         return false;
     }
-    let incoherent = rays
-        .chunks(crate::simd::PACKET_WIDTH)
-        .filter(|packet| {
-            let groups = packet.iter().fold(0u32, |g, r| {
-                let kz = crate::geometry::dominant_axis(r.dir);
-                g | 1 << (octant(r.dir) * 3 + kz)
-            });
-            groups.count_ones() > 2
-        })
-        .count();
-    2 * incoherent > rays.len().div_ceil(crate::simd::PACKET_WIDTH)
+    // The answer, `2 incoherent > packets`, is settled as soon as either count reaches
+    // half the packets (`2 coherent >= packets` leaves `2 incoherent <= packets`): a
+    // batch of coherent packets (camera rays, shadow rays towards a point light) is
+    // decided after half of them.
+    let packets = rays.len().div_ceil(crate::simd::PACKET_WIDTH);
+    let (mut incoherent, mut coherent) = (0, 0);
+    for packet in rays.chunks(crate::simd::PACKET_WIDTH) {
+        let groups = packet.iter().fold(0u32, |g, r| {
+            let kz = crate::geometry::dominant_axis(r.dir);
+            g | 1 << (octant(r.dir) * 3 + kz)
+        });
+        if groups.count_ones() > 2 {
+            incoherent += 1;
+            if 2 * incoherent > packets {
+                return true;
+            }
+        } else {
+            coherent += 1;
+            if 2 * coherent >= packets {
+                return false;
+            }
+        }
+    }
+    false
 }
 
 #[cfg(test)]
@@ -593,6 +606,61 @@ mod tests {
             rays.push(r);
         }
         rays
+    }
+
+    /// `incoherent_batch`'s early answer against the whole count (`2 incoherent >
+    /// packets`, every packet classified): batches of coherent and incoherent 16-ray
+    /// packets in every proportion from none to all, in three orders (incoherent first,
+    /// last, spread evenly), with a short last packet, around the exact half.
+    #[test]
+    fn incoherent_batch_answers_as_the_whole_count() {
+        let coherent = |i: usize| Ray::new(Vec3::new(0.01 * i as f32, 0.0, 5.0), Vec3::NEG_Z);
+        let incoherent_rays = mixed_rays(16, 9);
+        let whole_count = |rays: &[Ray]| {
+            let packets = rays.len().div_ceil(crate::simd::PACKET_WIDTH);
+            let incoherent = rays
+                .chunks(crate::simd::PACKET_WIDTH)
+                .filter(|p| {
+                    let groups = p.iter().fold(0u32, |g, r| {
+                        g | 1 << (octant(r.dir) * 3 + crate::geometry::dominant_axis(r.dir))
+                    });
+                    groups.count_ones() > 2
+                })
+                .count();
+            rays.len() >= STREAM_MIN_BATCH && 2 * incoherent > packets
+        };
+        let (mut yes, mut no) = (0, 0);
+        for packets in [8usize, 9, 16, 17] {
+            for tail in [0usize, 5] {
+                let len = packets * 16 - if tail > 0 { 16 - tail } else { 0 };
+                for bad in 0..=packets {
+                    for order in 0..3 {
+                        let is_bad = |p: usize| match order {
+                            0 => p < bad,
+                            1 => p >= packets - bad,
+                            _ => p * bad / packets != (p + 1) * bad / packets,
+                        };
+                        let rays: Vec<Ray> = (0..len)
+                            .map(|i| {
+                                if is_bad(i / 16) {
+                                    incoherent_rays[i % 16]
+                                } else {
+                                    coherent(i)
+                                }
+                            })
+                            .collect();
+                        let want = whole_count(&rays);
+                        assert_eq!(
+                            incoherent_batch(&rays),
+                            want,
+                            "{packets} packets ({len} rays), {bad} incoherent, order {order}"
+                        );
+                        if want { yes += 1 } else { no += 1 }
+                    }
+                }
+            }
+        }
+        assert!(yes > 50 && no > 50, "both answers met ({yes}, {no})");
     }
 
     /// Batches of decreasing size through one thread's scratch (whose buffers are then
