@@ -42,7 +42,7 @@ use crate::simd::direct_light::{
     Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light, point_light,
 };
 use crate::simd::lane_rays::lane_rays;
-use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
+use crate::simd::lanes3::{V3, is_run, offset_ray_origin as lane_offset};
 use crate::simd::ray_store::append_rays;
 use crate::simd::specular;
 use crate::stats::{EffectSamplesDrawn, RayCounts};
@@ -301,6 +301,33 @@ impl LanePaths {
     }
 }
 
+/// Adds lane `i` of `sums` to the camera sample `slot[i]`, for the `n` lanes of a
+/// group. Where the sixteen slots are consecutive (a run of one material's hits in a
+/// camera wave: each pixel's samples are consecutive queue entries, and their children
+/// keep their order) the sums go in as three 16-float windows ([`V3::add_to`]), else
+/// lane by lane; the same sums either way (each slot of a group is a different camera
+/// sample: one hit per ray).
+///
+/// Before: the lane-by-lane loop for every group, a bounds check and three scalar
+/// loads, adds and stores per lane: 3.8 % of `shade_group_lanes`' samples (perf,
+/// whitted_blur16, 1 thread).
+#[inline(always)]
+fn add_sums(acc: &mut [Vec3], slot: &[u32; 16], n: usize, sums: &V3) {
+    let first = slot[0] as usize;
+    if n == 16
+        && is_run(slot)
+        && let Some(dst) = acc.get_mut(first..first + 16)
+    {
+        let dst: &mut [Vec3; 16] = dst.try_into().expect("16 samples");
+        sums.add_to(dst);
+        return;
+    }
+    let [sx, sy, sz] = [sums.x, sums.y, sums.z].map(|p| p.to_array());
+    for (i, &s) in slot[..n].iter().enumerate() {
+        acc[s as usize] += Vec3::new(sx[i], sy[i], sz[i]);
+    }
+}
+
 /// The shadow rays of the set lanes of `s` into `q`; lane `i` belongs to the camera
 /// sample `paths.slot[i]`, keeps the time `paths.time[i]`, and its contribution is
 /// scaled by `weight` (`paths`' weights as lanes; the same f32 product as the scalar
@@ -480,15 +507,9 @@ fn shade_group_lanes(
                 let sl = directional_light(&s, &hl, wi, irradiance, active);
                 settle_and_sum(occluders, &sl, None, weight, &mut sum, &mut sinks.rays);
             }
-            let [sx, sy, sz] = [sum.x, sum.y, sum.z].map(|p| p.to_array());
-            for (i, &slot) in paths.slot[..n].iter().enumerate() {
-                sinks.acc[slot as usize] += Vec3::new(sx[i], sy[i], sz[i]);
-            }
+            add_sums(&mut sinks.acc, &paths.slot, n, &sum);
         } else {
-            let [lx, ly, lz] = [local.x, local.y, local.z].map(|p| p.to_array());
-            for (i, &slot) in paths.slot[..n].iter().enumerate() {
-                sinks.acc[slot as usize] += Vec3::new(lx[i], ly[i], lz[i]);
-            }
+            add_sums(&mut sinks.acc, &paths.slot, n, &local);
         }
         if lit && fused.is_none() {
             for &(index, position, intensity) in &lanes.points {
