@@ -477,6 +477,14 @@ fn shade_group_lanes(
             let [ax, ay, az] = [s.albedo.x, s.albedo.y, s.albedo.z].map(|p| p.to_array());
             albedo.extend((0..n).map(|i| Vec3::new(ax[i], ay[i], az[i])));
         }
+        // Tried and not kept (helper bl25, 2026-11-29): for a camera run, the weights
+        // as a splat of one (what `RayQueue::gather` fills them with) and the run of
+        // `add_sums` read from the batch's indices, so that neither waits on the
+        // gather's one-by-one stores (the multiply loading the weights held 2.9 % of
+        // this function's samples, perf annotate, whitted_blur16, 1 thread). Images
+        // byte-identical, but whitted_blur16 1024x768, 1 thread, two sets of 7
+        // interleaved rounds, load ~5: process CPU medians 1050.0 -> 1062.6 and
+        // 1013.7 -> 1017.6 ms (no gain).
         let weight = paths.weight();
         // `weight * (emission + ambient * albedo)` in lanes, the scalar shader's f32
         // operations, then added to each hit's camera sample in hit order.
