@@ -42,7 +42,8 @@ use crate::simd::direct_light::{
     Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light, point_light,
 };
 use crate::simd::lane_rays::lane_rays;
-use crate::simd::lanes3::{V3, offset_ray_origin as lane_offset};
+use crate::simd::lanes3::{V3, is_run, offset_ray_origin as lane_offset};
+use crate::simd::ray_store::append_rays;
 use crate::simd::specular;
 use crate::stats::{EffectSamplesDrawn, RayCounts};
 use glam::Vec3;
@@ -71,6 +72,9 @@ pub(crate) struct ShadeScratch {
     albedo: Vec<Vec3>,
     /// The light points of one hit (`area_light`).
     light: LightPoints,
+    /// The reflected and refracted children of one lane group (`specular_children`),
+    /// reused: only the entries below each one's count are read.
+    children: Box<[Children; 2]>,
 }
 
 /// What the lane path of a scene needs: which materials it covers and the lights in
@@ -297,6 +301,33 @@ impl LanePaths {
     }
 }
 
+/// Adds lane `i` of `sums` to the camera sample `slot[i]`, for the `n` lanes of a
+/// group. Where the sixteen slots are consecutive (a run of one material's hits in a
+/// camera wave: each pixel's samples are consecutive queue entries, and their children
+/// keep their order) the sums go in as three 16-float windows ([`V3::add_to`]), else
+/// lane by lane; the same sums either way (each slot of a group is a different camera
+/// sample: one hit per ray).
+///
+/// Before: the lane-by-lane loop for every group, a bounds check and three scalar
+/// loads, adds and stores per lane: 3.8 % of `shade_group_lanes`' samples (perf,
+/// whitted_blur16, 1 thread).
+#[inline(always)]
+fn add_sums(acc: &mut [Vec3], slot: &[u32; 16], n: usize, sums: &V3) {
+    let first = slot[0] as usize;
+    if n == 16
+        && is_run(slot)
+        && let Some(dst) = acc.get_mut(first..first + 16)
+    {
+        let dst: &mut [Vec3; 16] = dst.try_into().expect("16 samples");
+        sums.add_to(dst);
+        return;
+    }
+    let [sx, sy, sz] = [sums.x, sums.y, sums.z].map(|p| p.to_array());
+    for (i, &s) in slot[..n].iter().enumerate() {
+        acc[s as usize] += Vec3::new(sx[i], sy[i], sz[i]);
+    }
+}
+
 /// The shadow rays of the set lanes of `s` into `q`; lane `i` belongs to the camera
 /// sample `paths.slot[i]`, keeps the time `paths.time[i]`, and its contribution is
 /// scaled by `weight` (`paths`' weights as lanes; the same f32 product as the scalar
@@ -369,6 +400,7 @@ fn shade_group_lanes(
     };
     let batch = &scratch.batch;
     let albedo = &mut scratch.albedo;
+    let kids = &mut scratch.children;
     albedo.clear();
     let spawns = m.mirror != Vec3::ZERO || m.is_glossy() || m.is_transmissive();
     // Mirrors and clear glass draw no random numbers: their child rays are built in
@@ -445,6 +477,14 @@ fn shade_group_lanes(
             let [ax, ay, az] = [s.albedo.x, s.albedo.y, s.albedo.z].map(|p| p.to_array());
             albedo.extend((0..n).map(|i| Vec3::new(ax[i], ay[i], az[i])));
         }
+        // Tried and not kept (helper bl25, 2026-11-29): for a camera run, the weights
+        // as a splat of one (what `RayQueue::gather` fills them with) and the run of
+        // `add_sums` read from the batch's indices, so that neither waits on the
+        // gather's one-by-one stores (the multiply loading the weights held 2.9 % of
+        // this function's samples, perf annotate, whitted_blur16, 1 thread). Images
+        // byte-identical, but whitted_blur16 1024x768, 1 thread, two sets of 7
+        // interleaved rounds, load ~5: process CPU medians 1050.0 -> 1062.6 and
+        // 1013.7 -> 1017.6 ms (no gain).
         let weight = paths.weight();
         // `weight * (emission + ambient * albedo)` in lanes, the scalar shader's f32
         // operations, then added to each hit's camera sample in hit order.
@@ -475,15 +515,9 @@ fn shade_group_lanes(
                 let sl = directional_light(&s, &hl, wi, irradiance, active);
                 settle_and_sum(occluders, &sl, None, weight, &mut sum, &mut sinks.rays);
             }
-            let [sx, sy, sz] = [sum.x, sum.y, sum.z].map(|p| p.to_array());
-            for (i, &slot) in paths.slot[..n].iter().enumerate() {
-                sinks.acc[slot as usize] += Vec3::new(sx[i], sy[i], sz[i]);
-            }
+            add_sums(&mut sinks.acc, &paths.slot, n, &sum);
         } else {
-            let [lx, ly, lz] = [local.x, local.y, local.z].map(|p| p.to_array());
-            for (i, &slot) in paths.slot[..n].iter().enumerate() {
-                sinks.acc[slot as usize] += Vec3::new(lx[i], ly[i], lz[i]);
-            }
+            add_sums(&mut sinks.acc, &paths.slot, n, &local);
         }
         if lit && fused.is_none() {
             for &(index, position, intensity) in &lanes.points {
@@ -499,7 +533,7 @@ fn shade_group_lanes(
         }
         if lane_children {
             let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
-            specular_children(shader, m, n, &s, d, front, &paths, &children, sinks);
+            specular_children(shader, m, n, &s, d, front, &paths, &children, kids, sinks);
         }
         j += 16;
     }
@@ -636,6 +670,10 @@ fn shade_group_lanes(
 /// The child rays of one kind from one lane group, in the order the scalar shader
 /// queues them: per entry the lane, the child's weight and throughput and its branch
 /// number (what keys its path).
+///
+/// Kept in the stage's scratch and reset per lane group (`n = 0`): made afresh per
+/// group, the two of them were two `memset` calls (1160 and 768 bytes) per lane group
+/// of a mirror or glass.
 struct Children {
     n: usize,
     lane: [usize; 32],
@@ -644,8 +682,8 @@ struct Children {
     branch: [u32; 32],
 }
 
-impl Children {
-    fn new() -> Self {
+impl Default for Children {
+    fn default() -> Self {
         Children {
             n: 0,
             lane: [0; 32],
@@ -654,7 +692,9 @@ impl Children {
             branch: [0; 32],
         }
     }
+}
 
+impl Children {
     fn add(&mut self, lane: usize, w: Vec3, tp: Vec3, branch: &mut u32) {
         // At most two per hit (the mirror's and the glass's reflection), 16 hits.
         let k = self.n & 31;
@@ -679,11 +719,47 @@ impl Children {
         }
         let q = q.get_or_insert_with(RayQueue::default);
         let lanes = &self.lane[..n];
-        let rays = lane_rays(origin, dir, Packet::splat(f32::INFINITY), &paths.time);
         let weight = |i: usize| {
             let w = &paths.weight;
             Vec3::new(w[0][i], w[1][i], w[2][i])
         };
+        // The entries are lanes `0..n` in order (every hit of the group spawned one
+        // child of this kind, or the first `n` did: a mirror's or a clear glass's
+        // group, nearly always): the rays go from the lanes straight into the queue
+        // (`ray_store::append_rays`, the camera stage's store: tmin 0, tmax infinite,
+        // as `lane_rays` below builds them), then the other arrays are extended by
+        // the same `n`. A child queue is never a camera run (it is made by `default`
+        // and filled here or by `push_children`), so the queue's values stay one per
+        // ray.
+        //
+        // Before: every group through `lane_rays` (sixteen rays built on the stack)
+        // and a copy of each kept one into the queue: `RayQueue::extend`'s ray copy
+        // was a fifth of this function's samples and `lane_rays` an eighth (perf,
+        // whitted_blur16, 1 thread).
+        if n <= 16 && lanes.iter().enumerate().all(|(k, &i)| i == k) {
+            debug_assert!(q.camera_first_slot().is_none());
+            let [ox, oy, oz] = [origin.x, origin.y, origin.z].map(|p| p.to_array());
+            let [dx, dy, dz] = [dir.x, dir.y, dir.z].map(|p| p.to_array());
+            append_rays(
+                [&ox, &oy, &oz],
+                [&dx, &dy, &dz],
+                &paths.time,
+                n,
+                &mut q.rays,
+            );
+            q.extend(
+                std::iter::empty(),
+                paths.slot[..n].iter().copied(),
+                self.w[..n].iter().enumerate().map(|(i, &w)| weight(i) * w),
+                &self.tp[..n],
+                self.branch[..n]
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &b)| child_path(children.path[i], b)),
+            );
+            return;
+        }
+        let rays = lane_rays(origin, dir, Packet::splat(f32::INFINITY), &paths.time);
         q.extend(
             lanes.iter().map(|&i| rays[i & 15]),
             lanes.iter().map(|&i| paths.slot[i]),
@@ -733,6 +809,7 @@ fn specular_children(
     front: Packet,
     paths: &LanePaths,
     cp: &ChildPaths,
+    kids: &mut [Children; 2],
     sinks: &mut Sinks,
 ) {
     let mirror = m.mirror != Vec3::ZERO;
@@ -753,8 +830,8 @@ fn specular_children(
             inside,
         )
     });
-    let mut reflection = Children::new();
-    let mut refraction = Children::new();
+    let [reflection, refraction] = kids;
+    (reflection.n, refraction.n) = (0, 0);
     for i in 0..n.min(16) {
         let throughput = cp.throughput[i];
         let mut branch = 0;

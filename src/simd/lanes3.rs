@@ -15,6 +15,46 @@ use wide::i32x16;
 const _: () = assert!(std::mem::size_of::<Packet>() == std::mem::size_of::<i32x16>());
 const _: () = assert!(std::mem::size_of::<Packet>() == 16 * 4);
 
+// `V3::add_to` reads sixteen `Vec3`s as 48 contiguous floats.
+const _: () = assert!(std::mem::size_of::<[Vec3; 16]>() == 48 * 4);
+const _: () = assert!(std::mem::align_of::<Vec3>() == 4);
+
+/// The permute tables of [`V3::add_to`], per 16-float window `k` of sixteen `Vec3`s
+/// (float `16 k + m` is component `(16 k + m) % 3` of lane `(16 k + m) / 3`): the
+/// two-source index taking each x or y component from `x` (`lane`) or `y` (`16 +
+/// lane`), the index of each z component's lane in `z`, and the mask of the z lanes.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+const AOS_TABLES: ([[u32; 16]; 3], [[u32; 16]; 3], [u16; 3]) = {
+    let (mut xy, mut zi, mut zm) = ([[0u32; 16]; 3], [[0u32; 16]; 3], [0u16; 3]);
+    let mut k = 0;
+    while k < 3 {
+        let mut m = 0;
+        while m < 16 {
+            let e = 16 * k + m;
+            let (lane, c) = ((e / 3) as u32, e % 3);
+            if c == 2 {
+                zi[k][m] = lane;
+                zm[k] |= 1 << m;
+            } else {
+                xy[k][m] = lane + 16 * c as u32;
+            }
+            m += 1;
+        }
+        k += 1;
+    }
+    (xy, zi, zm)
+};
+
+/// Whether `v` is `v[0], v[0] + 1, ..., v[0] + 15` (wrapping): one lane compare.
+#[inline(always)]
+pub fn is_run(v: &[u32; 16]) -> bool {
+    use wide::u32x16;
+    const INDEX: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15];
+    (u32x16::new(*v) - u32x16::splat(v[0]))
+        .simd_eq(u32x16::new(INDEX))
+        .all()
+}
+
 /// One `Vec3` per lane.
 #[derive(Clone, Copy, Debug)]
 pub struct V3 {
@@ -52,6 +92,51 @@ impl V3 {
             self.y.to_array()[i],
             self.z.to_array()[i],
         )
+    }
+
+    /// `dst[i] += self.lane(i)` for the sixteen lanes: per component the same f32 sum
+    /// `dst[i].x + x[i]` as glam's `Vec3 += Vec3`.
+    ///
+    /// With AVX-512 the sixteen `Vec3`s are three 64-byte windows of 48 floats: each
+    /// window's lanes are gathered from `x`, `y`, `z` by two permutes (`x` and `y` by
+    /// one two-source permute, `z` merged by a masked one, the tables of
+    /// [`AOS_TABLES`]), added to the window in one `vaddps` and stored back, where the
+    /// loop did three scalar loads, adds and stores per lane. For the shading stage's
+    /// sums over a run of consecutive camera samples (`shade_stage`).
+    #[inline(always)]
+    pub fn add_to(&self, dst: &mut [Vec3; 16]) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+        {
+            use std::arch::x86_64::*;
+            let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+            let (xy, zi, zm) = AOS_TABLES;
+            // SAFETY: `dst` is 16 `Vec3`s, 48 contiguous f32 (`Vec3` is three f32,
+            // `repr(C)`, asserted below): three unaligned 16-float windows. The other
+            // loads are of 16-element arrays of 4-byte values.
+            unsafe {
+                let (x, y, z) = (
+                    _mm512_loadu_ps(x.as_ptr()),
+                    _mm512_loadu_ps(y.as_ptr()),
+                    _mm512_loadu_ps(z.as_ptr()),
+                );
+                let p = dst.as_mut_ptr() as *mut f32;
+                for k in 0..3 {
+                    let ixy = _mm512_loadu_si512(xy[k].as_ptr().cast());
+                    let iz = _mm512_loadu_si512(zi[k].as_ptr().cast());
+                    let w = _mm512_permutex2var_ps(x, ixy, y);
+                    let w = _mm512_mask_permutexvar_ps(w, zm[k], iz, z);
+                    let q = p.add(16 * k);
+                    _mm512_storeu_ps(q, _mm512_add_ps(_mm512_loadu_ps(q), w));
+                }
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+        {
+            let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+            for (i, d) in dst.iter_mut().enumerate() {
+                *d += Vec3::new(x[i], y[i], z[i]);
+            }
+        }
     }
 
     /// `(x * o.x) + (y * o.y) + (z * o.z)`, glam's order.
@@ -207,6 +292,81 @@ fn step(po: Packet, offset: Packet) -> Packet {
 mod tests {
     use super::*;
     use crate::geometry;
+
+    /// `is_run` says yes exactly for sixteen consecutive values.
+    #[test]
+    fn is_run_finds_consecutive_values() {
+        for first in [0u32, 7, u32::MAX - 20, u32::MAX - 3] {
+            let mut v: [u32; 16] = std::array::from_fn(|i| first.wrapping_add(i as u32));
+            assert!(is_run(&v), "{first}");
+            for i in 0..16 {
+                for bad in [1u32, 2, 16, 1 << 31] {
+                    let keep = v[i];
+                    v[i] = keep.wrapping_add(bad);
+                    assert!(!is_run(&v), "{first}: lane {i} moved by {bad}");
+                    v[i] = keep;
+                }
+            }
+        }
+    }
+
+    /// `add_to` adds each lane to its `Vec3` as the scalar `+=` does, bit for bit: random
+    /// values of every magnitude and sign, signed zeros, infinities and subnormals (NaN
+    /// only as NaN: the payload of a sum of two NaNs is not fixed by `+`).
+    #[test]
+    fn add_to_is_the_scalar_sum_per_lane() {
+        let mut s = 0x9e37_79b9u32;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s
+        };
+        let special = [
+            0.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            1e-40,
+            -3.5,
+        ];
+        for round in 0..2000 {
+            let mut value = || {
+                let r = rnd();
+                if round % 3 == 0 && r % 5 == 0 {
+                    special[(r / 5) as usize % special.len()]
+                } else {
+                    // Any finite f32 bit pattern, or a moderate value.
+                    let f = f32::from_bits(r);
+                    if f.is_finite() {
+                        f
+                    } else {
+                        (r % 1000) as f32 * 0.37
+                    }
+                }
+            };
+            let dst: [Vec3; 16] = std::array::from_fn(|_| Vec3::new(value(), value(), value()));
+            let add: [Vec3; 16] = std::array::from_fn(|_| Vec3::new(value(), value(), value()));
+            let lanes = V3 {
+                x: Packet::new(add.map(|v| v.x)),
+                y: Packet::new(add.map(|v| v.y)),
+                z: Packet::new(add.map(|v| v.z)),
+            };
+            let mut got = dst;
+            lanes.add_to(&mut got);
+            for i in 0..16 {
+                let want = dst[i] + add[i];
+                for c in 0..3 {
+                    let (g, w) = (got[i][c], want[c]);
+                    assert!(
+                        g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
+                        "round {round} lane {i} component {c}: {g:?} against {w:?}"
+                    );
+                }
+            }
+        }
+    }
 
     /// The lane offset equals the scalar one bit for bit, on ordinary points and on
     /// the edge cases of the final step: zero coordinates (±0 stepping to a
