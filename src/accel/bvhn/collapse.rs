@@ -106,6 +106,9 @@ impl<const N: usize> Collapse<'_, N> {
             .map(|item| match item {
                 Top::Node { .. } => None,
                 Top::Task(t) => {
+                    // Room for a node per four primitives, more than a collapse makes
+                    // (82k nodes 8 wide for 10^6 triangles, 4 per leaf): never grown,
+                    // and the room left over is never touched, so never faulted in.
                     let (first, end) = prim_range(t);
                     let mut c = Collapse::<N> {
                         ids,
