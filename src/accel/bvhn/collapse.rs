@@ -34,6 +34,12 @@ struct PendingLeaves {
 const GATHER_AHEAD: usize = 8;
 
 impl<const N: usize> Collapse<'_, N> {
+    /// [`Collapse::collapse_recycling`] without spare memory.
+    #[cfg(test)]
+    pub(super) fn collapse(&mut self, node: &BuildNode, parallel_levels: usize) -> u32 {
+        self.collapse_recycling(node, parallel_levels, None)
+    }
+
     /// The node reference for a build subtree: its two children, then the child with
     /// the largest area opened until there are N. The top `parallel_levels` levels
     /// collapse their children's subtrees in parallel.
@@ -45,28 +51,174 @@ impl<const N: usize> Collapse<'_, N> {
     /// triangles): the collapse was 9.5 % of a build, most of it waiting on the
     /// triangles' corners and on the build nodes, the gather one leaf at a time
     /// behind the tree walk.
-    pub(super) fn collapse(&mut self, node: &BuildNode, parallel_levels: usize) -> u32 {
-        self.collapse_recycling(node, parallel_levels, None)
-    }
-
-    /// [`Collapse::collapse`]; where the groups array is still unallocated, the
-    /// gather makes it in `spare`'s memory (sized once the node pass has counted the
-    /// groups), not in fresh pages.
+    ///
+    /// Where the groups array is still unallocated, the gather makes it in `spare`'s
+    /// memory (sized once the node pass has counted the groups), not in fresh pages.
     pub(super) fn collapse_recycling(
         &mut self,
         node: &BuildNode,
         parallel_levels: usize,
         spare: Option<SpareRefs>,
     ) -> u32 {
+        if parallel_levels > 0 {
+            return self.collapse_parallel(node, parallel_levels, spare);
+        }
         let mut pending = PendingLeaves {
             leaves: Vec::new(),
             groups: self.groups.len(),
         };
-        let root = self.collapse_nodes(node, parallel_levels, &mut pending);
+        let root = self.collapse_nodes(node, &mut pending);
         if let Some(tris) = self.triangles {
             self.gather(tris, &pending.leaves, spare);
         }
         root
+    }
+
+    /// [`Collapse::collapse_recycling`] with the top `levels` levels' subtrees
+    /// collapsed by separate tasks, each writing its part of the final arrays.
+    ///
+    /// The top levels are laid out first ([`Top`], in the serial layout's order: a
+    /// node, then each child's subtree); every subtree below them is one task. The tasks
+    /// run their node passes in parallel into arrays of their own ([`Part`]), which
+    /// gives each one's node and group count; then the final arrays are sized once
+    /// and the tasks, in parallel again, copy their nodes into their range (references
+    /// moved by the range's start) and gather their groups straight into theirs.
+    ///
+    /// Before (issue 12, helper bd25, 2026-11-29): each child's subtree collapsed into
+    /// arrays of its own (grown by doubling), and the parts were appended one after
+    /// the other into their parent's arrays, at both parallel levels, so nodes and
+    /// groups (42 MB at 10^6) were copied twice and the top copy ran on one thread;
+    /// and the groups' array was sized by a walk of the whole build tree first (the
+    /// parallel parts could not count it). Phase timers at 10^6 (`build_time 1000000 5
+    /// N`, load ~4): the parallel collapse took 125-134 ms against 69-77 ms serial.
+    fn collapse_parallel(
+        &mut self,
+        node: &BuildNode,
+        levels: usize,
+        spare: Option<SpareRefs>,
+    ) -> u32 {
+        let mut items = Vec::new();
+        plan::<N>(node, levels, &mut items);
+        let (ids, triangles) = (self.ids, self.triangles);
+        let parts: Vec<Option<Part<N>>> = items
+            .par_iter()
+            .with_max_len(1)
+            .map(|item| match item {
+                Top::Node { .. } => None,
+                Top::Task(t) => {
+                    // Room for a node per four primitives, more than a collapse makes
+                    // (82k nodes 8 wide for 10^6 triangles, 4 per leaf): never grown,
+                    // and the room left over is never touched, so never faulted in.
+                    let (first, end) = prim_range(t);
+                    let mut c = Collapse::<N> {
+                        ids,
+                        triangles,
+                        nodes: Vec::with_capacity(((end - first) as usize).div_ceil(4)),
+                        groups: Vec::new(),
+                    };
+                    let mut pending = PendingLeaves::default();
+                    let root = c.collapse_nodes(t, &mut pending);
+                    Some(Part {
+                        nodes: c.nodes,
+                        leaves: pending.leaves,
+                        groups: pending.groups,
+                        root,
+                    })
+                }
+            })
+            .collect();
+        // Each item's first node and first group, in layout order.
+        let (node_start, group_start) = (self.nodes.len(), self.groups.len());
+        let mut bases = Vec::with_capacity(items.len());
+        let (mut nb, mut gb) = (node_start, group_start);
+        for part in &parts {
+            bases.push((nb, gb));
+            match part {
+                None => nb += 1,
+                Some(p) => {
+                    nb += p.nodes.len();
+                    gb += p.groups;
+                }
+            }
+        }
+        let moves_leaves = triangles.is_some();
+        let refs: Vec<u32> = parts
+            .iter()
+            .zip(&bases)
+            .map(|(part, &base)| match part {
+                None => base.0 as u32,
+                Some(p) => relocate(p.root, base, moves_leaves),
+            })
+            .collect();
+        if moves_leaves
+            && self.groups.capacity() == 0
+            && let Some(spare) = spare
+        {
+            self.groups = spare.into_vec(gb - group_start);
+        }
+        self.nodes.reserve(nb - node_start);
+        self.groups.reserve(gb - group_start);
+        // Every item's ranges of the arrays' spare room, split off in layout order:
+        // the top nodes written here, the tasks' ranges handed to them.
+        let mut node_room = &mut self.nodes.spare_capacity_mut()[..nb - node_start];
+        let mut group_room = &mut self.groups.spare_capacity_mut()[..gb - group_start];
+        let mut tasks = Vec::new();
+        for ((item, part), base) in items.iter().zip(parts).zip(bases) {
+            let (nodes_here, groups_here) = match &part {
+                None => (1, 0),
+                Some(p) => (p.nodes.len(), p.groups),
+            };
+            let (node_out, rest) = std::mem::take(&mut node_room).split_at_mut(nodes_here);
+            node_room = rest;
+            let (group_out, rest) = std::mem::take(&mut group_room).split_at_mut(groups_here);
+            group_room = rest;
+            match (item, part) {
+                (Top::Node { kids, n, items }, None) => {
+                    let mut node = BvhNode::EMPTY;
+                    for (slot, k) in kids[..*n].iter().enumerate() {
+                        let b = k.bounds();
+                        for a in 0..3 {
+                            node.planes[a][slot] = b.min[a];
+                            node.planes[a + 3][slot] = b.max[a];
+                        }
+                        node.children[slot] = refs[items[slot]];
+                    }
+                    node_out[0].write(node);
+                }
+                (Top::Task(_), Some(p)) => tasks.push((p, base, node_out, group_out)),
+                _ => unreachable!("a task for every subtree item, none for a top node"),
+            }
+        }
+        tasks
+            .into_par_iter()
+            .with_max_len(1)
+            .for_each(|(p, base, node_out, group_out)| {
+                for (out, node) in node_out.iter_mut().zip(&p.nodes) {
+                    let mut node = *node;
+                    // A plain loop, not `array::map` (an out-of-line call in places).
+                    for c in node.children.iter_mut() {
+                        *c = relocate(*c, base, moves_leaves);
+                    }
+                    out.write(node);
+                }
+                if let Some(tris) = triangles {
+                    let mut out = group_out.iter_mut();
+                    for_each_group(tris, ids, &p.leaves, |g| {
+                        out.next().expect("room for every group").write(g);
+                    });
+                    assert!(out.next().is_none(), "every group written");
+                }
+            });
+        // SAFETY: the first `nb - node_start` and `gb - group_start` slots of the
+        // arrays' spare room were split into the items' ranges above, in order and with
+        // nothing left over; each top node's range was written in the loop, and each
+        // task wrote every slot of its node range (a copy of as many nodes) and of its
+        // group range (as many groups as its leaves' count, asserted).
+        unsafe {
+            self.nodes.set_len(nb);
+            self.groups.set_len(gb);
+        }
+        refs[0]
     }
 
     /// Fills the groups of `leaves` (in order) from `tris`; an unallocated groups
@@ -111,32 +263,11 @@ impl<const N: usize> Collapse<'_, N> {
         // (`stream_profile /tmp/m1e6.obj bvh8-packet W 5`, Mrays/s, 5 rounds): primary
         // 12.14/12.49/11.79/11.56/12.57 without, 12.31/12.97/12.29/11.88/12.64 with (+1-4 %),
         // shadow 4.37/3.92/4.05/4.22/3.94 without, 3.83/3.62/4.41/3.66/4.33 with: not taken.
-        for (i, &(first, count)) in leaves.iter().enumerate() {
-            if let Some(&(f, c)) = leaves.get(i + GATHER_AHEAD) {
-                for &id in &ids[f as usize..(f + c) as usize] {
-                    let k = id as usize;
-                    prefetch(&tris.v0[k], 1);
-                    prefetch(&tris.v1[k], 1);
-                    prefetch(&tris.v2[k], 1);
-                }
-            }
-            for chunk in ids[first as usize..(first + count) as usize].chunks(4) {
-                let mut g = TriGroup4::EMPTY;
-                for (lane, &id) in chunk.iter().enumerate() {
-                    let k = id as usize;
-                    g.set(lane, id, [tris.v0[k], tris.v1[k], tris.v2[k]]);
-                }
-                self.groups.push(g);
-            }
-        }
+        let groups = &mut self.groups;
+        for_each_group(tris, ids, leaves, |g| groups.push(g));
     }
 
-    fn collapse_nodes(
-        &mut self,
-        node: &BuildNode,
-        parallel_levels: usize,
-        pending: &mut PendingLeaves,
-    ) -> u32 {
+    fn collapse_nodes(&mut self, node: &BuildNode, pending: &mut PendingLeaves) -> u32 {
         let BuildNode::Interior { children, .. } = node else {
             let BuildNode::Leaf { start, count, .. } = node else {
                 unreachable!()
@@ -148,38 +279,8 @@ impl<const N: usize> Collapse<'_, N> {
         let index = self.nodes.len();
         self.nodes.push(BvhNode::EMPTY);
         let mut refs = [EMPTY_CHILD; N];
-        if parallel_levels > 0 {
-            // Each child's subtree into arrays of its own, appended in slot order: the
-            // same layout the serial recursion gives.
-            let (ids, triangles) = (self.ids, self.triangles);
-            let parts: Vec<(Collapse<'_, N>, u32)> = kids
-                .par_iter()
-                .map(|k| {
-                    let mut part = Collapse {
-                        ids,
-                        triangles,
-                        nodes: Vec::new(),
-                        groups: Vec::new(),
-                    };
-                    let r = part.collapse(k, parallel_levels - 1);
-                    (part, r)
-                })
-                .collect();
-            // The parts gathered their own groups, and every child of this node went
-            // to a part: nothing of this collapse is pending, so the parts' groups go
-            // next and pending leaves (of later siblings) after them.
-            assert!(
-                pending.leaves.is_empty(),
-                "no leaf pending before a parallel node"
-            );
-            for (slot, (part, r)) in parts.into_iter().enumerate() {
-                pending.groups += part.groups.len();
-                refs[slot] = self.append(part, r);
-            }
-        } else {
-            for (slot, k) in kids.iter().enumerate() {
-                refs[slot] = self.collapse_nodes(k, 0, pending);
-            }
+        for (slot, k) in kids.iter().enumerate() {
+            refs[slot] = self.collapse_nodes(k, pending);
         }
         let node = &mut self.nodes[index];
         for (slot, k) in kids.iter().enumerate() {
@@ -191,32 +292,6 @@ impl<const N: usize> Collapse<'_, N> {
             node.children[slot] = refs[slot];
         }
         index as u32
-    }
-
-    /// Appends a subtree collapsed on its own, moving its node and group references
-    /// past what is already here; returns its root's reference, moved likewise.
-    fn append(&mut self, part: Collapse<'_, N>, root: u32) -> u32 {
-        let node_base = self.nodes.len() as u32;
-        let group_base = self.groups.len() as u32;
-        // Scalar leaves index the permuted primitives directly and never move.
-        let moves_leaves = self.triangles.is_some();
-        let relocate = |r: u32| {
-            if r == EMPTY_CHILD || (is_leaf(r) && !moves_leaves) {
-                r
-            } else if is_leaf(r) {
-                let first = (r & FIRST_MASK) + group_base;
-                assert!(first <= FIRST_MASK, "leaf exceeds the reference encoding");
-                r & !FIRST_MASK | first
-            } else {
-                r + node_base
-            }
-        };
-        self.nodes.extend(part.nodes.into_iter().map(|mut node| {
-            node.children = node.children.map(relocate);
-            node
-        }));
-        self.groups.extend(part.groups);
-        relocate(root)
     }
 
     /// A leaf's reference; a triangle leaf takes the next group indices and is
@@ -240,6 +315,133 @@ impl<const N: usize> Collapse<'_, N> {
         pending.leaves.push((first as u32, count as u32));
         pending.groups += ngroups;
         LEAF | (ngroups as u32) << COUNT_SHIFT | start as u32
+    }
+}
+
+/// The groups of `leaves` (ranges of `ids`, in order) from `tris`, handed to `put` in
+/// order; the triangles of the leaf [`GATHER_AHEAD`] ahead are prefetched.
+#[inline(always)]
+fn for_each_group(
+    tris: &Triangles,
+    ids: &[u32],
+    leaves: &[(u32, u32)],
+    mut put: impl FnMut(TriGroup4),
+) {
+    for (i, &(first, count)) in leaves.iter().enumerate() {
+        if let Some(&(f, c)) = leaves.get(i + GATHER_AHEAD) {
+            for &id in &ids[f as usize..(f + c) as usize] {
+                let k = id as usize;
+                prefetch(&tris.v0[k], 1);
+                prefetch(&tris.v1[k], 1);
+                prefetch(&tris.v2[k], 1);
+            }
+        }
+        for chunk in ids[first as usize..(first + count) as usize].chunks(4) {
+            let mut g = TriGroup4::EMPTY;
+            for (lane, &id) in chunk.iter().enumerate() {
+                let k = id as usize;
+                g.set(lane, id, [tris.v0[k], tris.v1[k], tris.v2[k]]);
+            }
+            put(g);
+        }
+    }
+}
+
+/// One item of the top of a parallel collapse ([`Collapse::collapse_parallel`]), in
+/// the serial layout's order.
+enum Top<'t, const N: usize> {
+    /// A node of the top levels: its children and their items' indices.
+    Node {
+        kids: [&'t BuildNode; N],
+        n: usize,
+        items: [usize; N],
+    },
+    /// A subtree below them (or a leaf among them), collapsed by one task.
+    Task(&'t BuildNode),
+}
+
+/// A task's subtree collapsed alone: its nodes and its root's reference (node and
+/// group indices from 0), its triangle leaves' ranges and their group count.
+struct Part<const N: usize> {
+    nodes: Vec<BvhNode<N>>,
+    leaves: Vec<(u32, u32)>,
+    groups: usize,
+    root: u32,
+}
+
+/// Lays out the top `levels` levels of the collapse of `node` into `items` (a node,
+/// then each child's items, as the serial collapse lays them); returns `node`'s item.
+fn plan<'t, const N: usize>(
+    node: &'t BuildNode,
+    levels: usize,
+    items: &mut Vec<Top<'t, N>>,
+) -> usize {
+    let i = items.len();
+    match node {
+        BuildNode::Interior { children, .. } if levels > 0 => {
+            let (kids, n) = open_children::<N>(children);
+            items.push(Top::Node {
+                kids,
+                n,
+                items: [0; N],
+            });
+            let mut kid_items = [0; N];
+            for (slot, k) in kids[..n].iter().enumerate() {
+                kid_items[slot] = plan(k, levels - 1, items);
+            }
+            if let Top::Node { items: it, .. } = &mut items[i] {
+                *it = kid_items;
+            }
+        }
+        _ => items.push(Top::Task(node)),
+    }
+    i
+}
+
+/// The range of the primitive order a build subtree's leaves cover (its first leaf's
+/// start to its last leaf's end: the builder gives a subtree one contiguous range).
+fn prim_range(node: &BuildNode) -> (u32, u32) {
+    let mut first = node;
+    while let BuildNode::Interior { children, .. } = first {
+        first = &children[0];
+    }
+    let mut last = node;
+    while let BuildNode::Interior { children, .. } = last {
+        last = &children[1];
+    }
+    let (
+        BuildNode::Leaf { start, .. },
+        BuildNode::Leaf {
+            start: s, count, ..
+        },
+    ) = (first, last)
+    else {
+        unreachable!("the walks end at leaves")
+    };
+    (*start, s + count)
+}
+
+/// Reference `r` of a part collapsed alone, moved to the part's place in the final
+/// arrays (`base`: its first node and first group). Scalar leaves (`moves_leaves`
+/// false) index the permuted primitives directly and never move.
+#[inline(always)]
+fn relocate(r: u32, base: (usize, usize), moves_leaves: bool) -> u32 {
+    if r == EMPTY_CHILD || (is_leaf(r) && !moves_leaves) {
+        r
+    } else if is_leaf(r) {
+        let first = (r & FIRST_MASK) as usize + base.1;
+        assert!(
+            first <= FIRST_MASK as usize,
+            "leaf exceeds the reference encoding"
+        );
+        r & !FIRST_MASK | first as u32
+    } else {
+        let index = r as usize + base.0;
+        assert!(
+            index < LEAF as usize,
+            "node index exceeds the reference encoding"
+        );
+        index as u32
     }
 }
 
@@ -414,6 +616,48 @@ mod tests {
             if n >= 333 {
                 assert!(nodes8 > 1 && nodes4 > nodes8, "{n}: {nodes8} / {nodes4}");
             }
+        }
+    }
+
+    /// A whole build at two threads (the top of the collapse laid out first, its
+    /// subtrees written by tasks straight into the final arrays; the build tree freed
+    /// in parallel tasks) gives every bit of the one-thread build's nodes and groups,
+    /// 8 and 4 wide, and the same statistics.
+    #[test]
+    fn two_thread_build_lays_out_the_one_thread_build() {
+        use super::super::node::{NodeWidth, Width};
+        use super::super::tree::{Bvh, Leaves};
+        fn layout<const N: usize>(tris: &Triangles, threads: usize) -> (Vec<u32>, String)
+        where
+            Width<N>: NodeWidth,
+        {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("thread pool");
+            let bvh = pool.install(|| Bvh::<Triangles, N>::build(tris.clone()));
+            let Leaves::Triangles(groups) = &bvh.leaves else {
+                panic!("triangle leaves")
+            };
+            let i = &bvh.info;
+            let stats = format!(
+                "{} {} {} {} {} {}",
+                i.nodes,
+                i.leaves,
+                i.max_depth,
+                i.memory_bytes,
+                i.sah_cost.to_bits(),
+                bvh.stack_need
+            );
+            (bits(bvh.root, &bvh.nodes, groups), stats)
+        }
+        for n in [1, 2, 333, 20_000, 150_000] {
+            let tris = mesh(n);
+            let (one8, two8) = (layout::<8>(&tris, 1), layout::<8>(&tris, 2));
+            assert_eq!(one8, two8, "BVH8, {n} triangles");
+            let (one4, two4) = (layout::<4>(&tris, 1), layout::<4>(&tris, 2));
+            assert_eq!(one4, two4, "BVH4, {n} triangles");
+            assert!(one8.0.len() > n && one4.0.len() > one8.0.len() / 2);
         }
     }
 }

@@ -16,6 +16,10 @@ use crate::simd::slab_fma::FMA_SLAB;
 use crate::simd::{PACKET_WIDTH, Packet};
 use std::time::Instant;
 
+/// Levels of the build tree whose subtrees are freed as separate tasks
+/// ([`BuildNode::drop_in_parallel`]): up to 2^6 tasks.
+const DROP_LEVELS: usize = 6;
+
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
     /// Triangle meshes: groups of four, SoA.
@@ -117,21 +121,14 @@ where
         let parallel = rayon::current_num_threads() > 1;
         // The triangle groups go into the build's dead reference array where it is
         // large (`SpareRefs`: at 10^7 its 320 MB of pages would otherwise be unmapped
-        // and 420 MB of fresh ones faulted in). The serial collapse sizes the groups
-        // itself once its node pass has counted them (`Collapse::gather`); the parallel
-        // one appends its parts' groups, so they are counted before. The count walks
-        // the whole build tree: 1.3 % of a 1-thread 10^6 build's perf samples (big19),
-        // now skipped there.
-        let (groups, spare) = match (&tree, triangles) {
-            (Some(t), Some(_)) if parallel => (spare.into_vec(t.leaf_blocks(4)), None),
-            (_, Some(_)) => (Vec::new(), Some(spare)),
-            _ => (Vec::new(), None),
-        };
+        // and 420 MB of fresh ones faulted in), sized by the collapse once its node
+        // pass has counted them (`Collapse::gather`, `Collapse::collapse_parallel`).
+        let spare = triangles.map(|_| spare);
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
             nodes: Vec::with_capacity(n / 2 + 1),
-            groups,
+            groups: Vec::new(),
         };
         // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
         // node and group arrays before the collapse writes them, as Embree's allocator
@@ -145,8 +142,8 @@ where
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
-            // subtree collapses into arrays of its own that are then copied in.
-            Some(t) if parallel => c.collapse(t, PARALLEL_COLLAPSE_LEVELS),
+            // subtree collapses its nodes into an array of its own that is then copied.
+            Some(t) if parallel => c.collapse_recycling(t, PARALLEL_COLLAPSE_LEVELS, spare),
             Some(t) => c.collapse_recycling(t, 0, spare),
         };
         let Collapse { nodes, groups, .. } = c;
@@ -191,6 +188,11 @@ where
         let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
         let leaves = if triangles.is_some() {
+            // Freed before the build tree, as it was when both were freed at the end of
+            // this function (locals in reverse order): freed after it, the heap's top
+            // was trimmed differently and the next build at 1 thread faulted ~14k more
+            // pages (29.4k against 15.4k per 10^6 build, `build_time 1000000 3 1`).
+            drop(ids);
             Leaves::Triangles(groups)
         } else {
             Leaves::Scalar {
@@ -217,7 +219,17 @@ where
             }),
             leaf_call: false,
         };
-        let (leaf_count, depth, sah, stack_need) = bvh.shape(root_area);
+        // The build tree is freed (in parallel tasks) while the shape walk runs, so
+        // `build_ms` now counts its drop (it ended the build before, after `build_ms`
+        // was taken; `bench`'s build ms, timed around the call, counted it already).
+        let ((leaf_count, depth, sah, stack_need), ()) = rayon::join(
+            || bvh.shape(root_area),
+            || {
+                if let Some(t) = tree {
+                    t.drop_in_parallel(DROP_LEVELS);
+                }
+            },
+        );
         assert!(
             stack_need < SINGLE_STACK,
             "BVH{N} deeper than the BVH2 depth bound allows"
