@@ -581,6 +581,11 @@ pub(super) struct SpareRefs(Vec<PrimRef>);
 /// (`DEFAULT_MMAP_THRESHOLD_MAX`, 32 MiB on 64-bit), below which blocks come from the
 /// heap, where the next array gets the freed pages back anyway and growing a block in
 /// place may copy it.
+///
+/// Tried, no win (2026-11-29, session 25): 16 MiB, so that a 10^6 build's reference
+/// array (32,000,000 bytes, just under 32 MiB) is taken over too. `bench --mesh
+/// /tmp/m1e6.obj --threads 2 --reps 1 --modes bvh8-packet`, build ms, 3 interleaved
+/// rounds (AVX-512, host in a slow state): 199/190/206 at 32 MiB against 234/203/193.
 const RECYCLE_MIN_BYTES: usize = 32 << 20;
 
 impl SpareRefs {
