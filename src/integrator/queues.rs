@@ -285,8 +285,22 @@ impl RayQueue {
         throughputs: &[Vec3],
         paths: impl IntoIterator<Item = u64>,
     ) {
+        self.extend_with(|r| r.extend(rays), slots, weights, throughputs, paths);
+    }
+
+    /// [`RayQueue::extend`] with the rays written by `append_rays` onto the queue's ray
+    /// array (a store straight from lanes, `ray_store::append_rays`), after a camera
+    /// run's values are written out.
+    pub fn extend_with(
+        &mut self,
+        append_rays: impl FnOnce(&mut Vec<Ray>),
+        slots: impl IntoIterator<Item = u32>,
+        weights: impl IntoIterator<Item = Vec3>,
+        throughputs: &[Vec3],
+        paths: impl IntoIterator<Item = u64>,
+    ) {
         self.materialize();
-        self.rays.extend(rays);
+        append_rays(&mut self.rays);
         self.slot.extend(slots);
         self.weight.extend(weights);
         self.throughput.extend_from_slice(throughputs);

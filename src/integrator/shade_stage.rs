@@ -727,28 +727,18 @@ impl Children {
         // child of this kind, or the first `n` did: a mirror's or a clear glass's
         // group, nearly always): the rays go from the lanes straight into the queue
         // (`ray_store::append_rays`, the camera stage's store: tmin 0, tmax infinite,
-        // as `lane_rays` below builds them), then the other arrays are extended by
-        // the same `n`. A child queue is never a camera run (it is made by `default`
-        // and filled here or by `push_children`), so the queue's values stay one per
-        // ray.
+        // as `lane_rays` below builds them), with the other arrays extended by the
+        // same `n` (`RayQueue::extend_with`).
         //
         // Before: every group through `lane_rays` (sixteen rays built on the stack)
         // and a copy of each kept one into the queue: `RayQueue::extend`'s ray copy
         // was a fifth of this function's samples and `lane_rays` an eighth (perf,
         // whitted_blur16, 1 thread).
         if n <= 16 && lanes.iter().enumerate().all(|(k, &i)| i == k) {
-            debug_assert!(q.camera_first_slot().is_none());
             let [ox, oy, oz] = [origin.x, origin.y, origin.z].map(|p| p.to_array());
             let [dx, dy, dz] = [dir.x, dir.y, dir.z].map(|p| p.to_array());
-            append_rays(
-                [&ox, &oy, &oz],
-                [&dx, &dy, &dz],
-                &paths.time,
-                n,
-                &mut q.rays,
-            );
-            q.extend(
-                std::iter::empty(),
+            q.extend_with(
+                |rays| append_rays([&ox, &oy, &oz], [&dx, &dy, &dz], &paths.time, n, rays),
                 paths.slot[..n].iter().copied(),
                 self.w[..n].iter().enumerate().map(|(i, &w)| weight(i) * w),
                 &self.tp[..n],

@@ -154,9 +154,9 @@ pub fn gather_f32x3(tables: [&[f32]; 3], idx: &[u32; 16], mask: u32) -> [Packet;
 /// sixteen lanes under the mask.
 #[inline(always)]
 fn check_lanes(len: usize, idx: &[u32; 16], mask: u32) {
-    let limit = len.min(i32::MAX as usize) as u32;
     #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
     {
+        let limit = lane_limit(len);
         use std::arch::x86_64::*;
         // SAFETY: an unaligned load of sixteen `u32`s; compares only.
         let bad = unsafe {
@@ -166,7 +166,13 @@ fn check_lanes(len: usize, idx: &[u32; 16], mask: u32) {
         assert!(bad == 0, "gather index out of bounds ({len})");
     }
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
-    check_lanes_plain(limit, idx, mask, len);
+    check_lanes_plain(len, idx, mask);
+}
+
+/// The bound every gathered index must stay below: the table's length, at most 2^31 - 1.
+#[inline(always)]
+fn lane_limit(len: usize) -> u32 {
+    len.min(i32::MAX as usize) as u32
 }
 
 /// The plain loop of [`check_lanes`] (its reference, and the path without AVX-512).
@@ -175,7 +181,8 @@ fn check_lanes(len: usize, idx: &[u32; 16], mask: u32) {
     all(target_arch = "x86_64", target_feature = "avx512f"),
     allow(dead_code)
 )]
-fn check_lanes_plain(limit: u32, idx: &[u32; 16], mask: u32, len: usize) {
+fn check_lanes_plain(len: usize, idx: &[u32; 16], mask: u32) {
+    let limit = lane_limit(len);
     let mut bad = 0u32;
     for (l, &i) in idx.iter().enumerate() {
         bad |= ((i >= limit) as u32) << l;
@@ -458,12 +465,11 @@ mod tests {
                 0 => near[(next() % near.len() as u64) as usize],
                 _ => (next() % 8) as u32,
             });
-            let limit = len.min(i32::MAX as usize) as u32;
-            let run = |f: fn(usize, u32, &[u32; 16], u32)| {
-                std::panic::catch_unwind(|| f(len, limit, &idx, mask)).is_err()
+            let run = |f: fn(usize, &[u32; 16], u32)| {
+                std::panic::catch_unwind(|| f(len, &idx, mask)).is_err()
             };
-            let vector = run(|len, _, idx, mask| check_lanes(len, idx, mask));
-            let plain = run(|len, limit, idx, mask| check_lanes_plain(limit, idx, mask, len));
+            let vector = run(check_lanes);
+            let plain = run(check_lanes_plain);
             assert_eq!(vector, plain, "len {len} mask {mask:#x} idx {idx:?}");
         }
     }

@@ -174,16 +174,7 @@ impl<const N: usize> Collapse<'_, N> {
             group_room = rest;
             match (item, part) {
                 (Top::Node { kids, n, items }, None) => {
-                    let mut node = BvhNode::EMPTY;
-                    for (slot, k) in kids[..*n].iter().enumerate() {
-                        let b = k.bounds();
-                        for a in 0..3 {
-                            node.planes[a][slot] = b.min[a];
-                            node.planes[a + 3][slot] = b.max[a];
-                        }
-                        node.children[slot] = refs[items[slot]];
-                    }
-                    node_out[0].write(node);
+                    node_out[0].write(wide_node(&kids[..*n], |slot| refs[items[slot]]));
                 }
                 (Top::Task(_), Some(p)) => tasks.push((p, base, node_out, group_out)),
                 _ => unreachable!("a task for every subtree item, none for a top node"),
@@ -282,15 +273,7 @@ impl<const N: usize> Collapse<'_, N> {
         for (slot, k) in kids.iter().enumerate() {
             refs[slot] = self.collapse_nodes(k, pending);
         }
-        let node = &mut self.nodes[index];
-        for (slot, k) in kids.iter().enumerate() {
-            let b = k.bounds();
-            for a in 0..3 {
-                node.planes[a][slot] = b.min[a];
-                node.planes[a + 3][slot] = b.max[a];
-            }
-            node.children[slot] = refs[slot];
-        }
+        self.nodes[index] = wide_node(kids, |slot| refs[slot]);
         index as u32
     }
 
@@ -316,6 +299,22 @@ impl<const N: usize> Collapse<'_, N> {
         pending.groups += ngroups;
         LEAF | (ngroups as u32) << COUNT_SHIFT | start as u32
     }
+}
+
+/// The N-wide node over the build nodes `kids` (at most N): their boxes as the slots'
+/// planes, slot `i`'s reference `child(i)`, the other slots empty.
+#[inline(always)]
+fn wide_node<const N: usize>(kids: &[&BuildNode], child: impl Fn(usize) -> u32) -> BvhNode<N> {
+    let mut node = BvhNode::EMPTY;
+    for (slot, k) in kids.iter().enumerate() {
+        let b = k.bounds();
+        for a in 0..3 {
+            node.planes[a][slot] = b.min[a];
+            node.planes[a + 3][slot] = b.max[a];
+        }
+        node.children[slot] = child(slot);
+    }
+    node
 }
 
 /// The groups of `leaves` (ranges of `ids`, in order) from `tris`, handed to `put` in

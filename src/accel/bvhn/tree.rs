@@ -143,8 +143,14 @@ where
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
             // subtree collapses its nodes into an array of its own that is then copied.
-            Some(t) if parallel => c.collapse_recycling(t, PARALLEL_COLLAPSE_LEVELS, spare),
-            Some(t) => c.collapse_recycling(t, 0, spare),
+            Some(t) => {
+                let levels = if parallel {
+                    PARALLEL_COLLAPSE_LEVELS
+                } else {
+                    0
+                };
+                c.collapse_recycling(t, levels, spare)
+            }
         };
         let Collapse { nodes, groups, .. } = c;
         // Tried, no clear win, removed (issue 12, big21, 2026-11-28): the nodes renumbered
