@@ -9,7 +9,10 @@ use crate::integrator::{
     FilterKind, IntegratorKind, PixelBounds, RenderOptions, RenderOutput, SamplerKind, budget,
 };
 use crate::scene::{self, SampleCounts, Scene};
-use crate::stats::{EffectSamplesDrawn, PhaseTimes, RayCounts, StageTimes, ms_since};
+use crate::stats::{
+    EffectSamplesDrawn, PhaseFaults, PhaseTimes, RayCounts, StageTimes, ms_since,
+    process_page_faults,
+};
 use serde::Serialize;
 use std::ops::Range;
 use std::path::PathBuf;
@@ -92,6 +95,8 @@ pub struct RenderReport {
     pub accel: Vec<AccelInfo>,
     pub rays: RayTotals,
     pub time_ms: PhaseTimes,
+    /// Page faults by phase (the whole process; zero where not counted).
+    pub page_faults: PhaseFaults,
     /// Time by stage (wavefront only), summed over threads; a stage the scene does not
     /// need is absent.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -159,10 +164,17 @@ impl RenderJob {
             .collect();
         crate::film::check_output_paths(&outputs)?;
         let mut time = PhaseTimes::default();
+        let mut faults = PhaseFaults::default();
+        let mut mapped = process_page_faults();
+        let mut faults_lap = || {
+            let before = std::mem::replace(&mut mapped, process_page_faults());
+            mapped.saturating_sub(before)
+        };
         let t = Instant::now();
         let mut scene = scene::load::load_scene(&self.scene)?;
         self.overrides.camera.apply_to_scene(&mut scene)?;
         time.load = ms_since(t);
+        faults.load = faults_lap();
         if let Some(w) = scene::nothing_visible_warning(&scene, &self.scene.display().to_string()) {
             eprintln!("warning: {w}");
         }
@@ -177,9 +189,11 @@ impl RenderJob {
         let t = Instant::now();
         let accel = SceneAccel::build(&scene, self.accel);
         time.build = ms_since(t);
+        faults.build = faults_lap();
 
         let out = self.integrator.render(&scene, &accel, &opts);
         time.render = out.render_ms;
+        faults.render = faults_lap();
 
         let t = Instant::now();
         if partial {
@@ -189,6 +203,7 @@ impl RenderJob {
             self.save_image(&scene, &accel, &opts, &out)?;
         }
         time.write = ms_since(t);
+        faults.write = faults_lap();
 
         let total = out.rays.total();
         Ok(RenderReport {
@@ -223,6 +238,7 @@ impl RenderJob {
                 total,
             },
             time_ms: time,
+            page_faults: faults,
             peak_queue_paths: out.stages_ms.is_some().then_some(out.peak_queue_paths),
             stages_ms: out.stages_ms,
             mrays_per_s: total as f64 / (time.render.max(1e-6) * 1e3),
@@ -422,10 +438,15 @@ impl RenderReport {
             t.write,
             t.total()
         );
+        let f = &self.page_faults;
+        s += &format!(
+            "faults   load {}, build {}, render {}, write {} (pages the process mapped)\n",
+            f.load, f.build, f.render, f.write
+        );
         if let Some(st) = &self.stages_ms {
             let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
             s += &format!(
-                "stages   setup {:.1}, camera {:.1}, trace {:.1}, shade {:.1}, shadow {}, area shadow {}, reflection {}, refraction {}, glossy {}, translucency {}, resolve {:.1}, assemble {:.1} (ms, all threads)\n",
+                "stages   setup {:.1}, camera {:.1}, trace {:.1}, shade {:.1}, shadow {}, area shadow {}, reflection {}, refraction {}, glossy {}, translucency {}, resolve {:.1}, film pages {:.1}, assemble {:.1} (ms, all threads)\n",
                 st.setup,
                 st.camera,
                 st.trace,
@@ -437,6 +458,7 @@ impl RenderReport {
                 opt(st.glossy),
                 opt(st.translucency),
                 st.resolve,
+                st.film,
                 st.assemble
             );
         }

@@ -20,6 +20,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod job;
+mod pages;
 pub mod plot;
 pub mod progressive;
 pub mod scene;

@@ -111,6 +111,10 @@ pub struct StageTimes {
     /// The pixel filter (camera-sample radiance into pixel values and sums) and the
     /// copy of each finished tile into the film.
     pub resolve: f64,
+    /// Mapping the film's fresh pages, band by band before its tiles are written
+    /// (`film::populate_for_writing`): the kernel's (and on a VM, the host's) first
+    /// touch of memory, apart from the renderer's own work.
+    pub film: f64,
     /// After the tiles: the bands' counts and sums merged, the scratch freed (serial).
     pub assemble: f64,
 }
@@ -148,6 +152,7 @@ impl AddAssign for StageTimes {
         add(&mut self.glossy, o.glossy);
         add(&mut self.translucency, o.translucency);
         self.resolve += o.resolve;
+        self.film += o.film;
         self.assemble += o.assemble;
     }
 }
@@ -165,6 +170,33 @@ impl PhaseTimes {
     pub fn total(&self) -> f64 {
         self.load + self.build + self.render + self.write
     }
+}
+
+/// Page faults per phase (minor and major, the whole process): how much fresh memory
+/// each phase mapped. On a virtual machine a fresh page can cost tens of microseconds
+/// (the host backs it on first touch), so a phase whose time moves between runs while
+/// its work does not often shows it here.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct PhaseFaults {
+    pub load: u64,
+    pub build: u64,
+    pub render: u64,
+    pub write: u64,
+}
+
+/// Page faults (minor and major) taken so far by the whole process, all threads; zero
+/// where the platform does not count them.
+pub fn process_page_faults() -> u64 {
+    #[cfg(unix)]
+    {
+        // SAFETY: `getrusage` writes one `rusage` through the valid pointer; all-zero
+        // is a valid `rusage`.
+        let mut r: libc::rusage = unsafe { std::mem::zeroed() };
+        if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut r) } == 0 {
+            return (r.ru_minflt + r.ru_majflt) as u64;
+        }
+    }
+    0
 }
 
 /// Milliseconds elapsed since `start`.

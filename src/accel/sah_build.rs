@@ -97,6 +97,7 @@
 use super::Bvh2BuildOptions;
 use super::Primitives;
 use crate::geometry::Aabb;
+use crate::pages::{ALWAYS_MAPPED_BYTES, advise_huge_pages};
 use crate::simd::bin_box::BinBox;
 use crate::simd::bin_index;
 use crate::simd::box_areas;
@@ -586,7 +587,7 @@ pub(super) struct SpareRefs(Vec<PrimRef>);
 /// array (32,000,000 bytes, just under 32 MiB) is taken over too. `bench --mesh
 /// /tmp/m1e6.obj --threads 2 --reps 1 --modes bvh8-packet`, build ms, 3 interleaved
 /// rounds (AVX-512, host in a slow state): 199/190/206 at 32 MiB against 234/203/193.
-const RECYCLE_MIN_BYTES: usize = 32 << 20;
+const RECYCLE_MIN_BYTES: usize = ALWAYS_MAPPED_BYTES;
 
 impl SpareRefs {
     /// An empty vector with room for `capacity` values of `T`: in the spare array's
@@ -704,85 +705,6 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
     // SAFETY: allocated by the global allocator with the layout of `n` PrimRefs, and
     // all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
     unsafe { Vec::from_raw_parts(ptr, n, n) }
-}
-
-/// Asks the kernel to back the whole 2 MiB pages inside `[ptr, ptr + len)` with huge
-/// pages (`madvise(MADV_HUGEPAGE)`; the machine's `transparent_hugepage` setting is
-/// `madvise`). Only for arrays of at least 4 MiB; failure changes nothing but speed.
-///
-/// An array that may be recycled (at least [`RECYCLE_MIN_BYTES`]: a mapped block of
-/// its own) is advised over every 4 KiB page it touches, not only its whole 2 MiB
-/// pages (only those get huge pages either way): advice on part of a mapping splits
-/// it in several, and `mremap` refuses a range across mappings (`EFAULT`), so glibc's
-/// `realloc` of the array ([`SpareRefs::into_vec`]) then copied all of it into a fresh
-/// block (seen with `strace` at 10^7: 320 MB copied, 419 MB of fresh pages). Smaller
-/// arrays, heap blocks that may share their first and last page, keep the advice to
-/// their whole huge pages.
-///
-/// Dead end (issue 12, helper bld23, 2026-11-29, commit ea0c063, reverted by the lead the
-/// same day): no advice for arrays of [`RECYCLE_MIN_BYTES`] and more. bld23's reasoning
-/// and its loaded measurements, as it wrote them:
-///
-/// "Not for larger arrays, which glibc maps afresh for every build and unmaps after
-/// (issue 12, helper bld23, 2026-11-29). This VM's balloon reports free memory to the
-/// host in blocks of 2 MiB and more (virtio-balloon `F_REPORTING`,
-/// `page_reporting_order` 9), and the host takes those pages back; a huge page is
-/// such a block, so touching a fresh one costs a host fault besides the guest's
-/// zeroing, while 4 KiB pages come first from smaller free blocks, never reported. A C
-/// test (`mmap` of 320 MB, one write per 4 KiB, unmapped, alternating 4 KiB and huge
-/// pages; load ~3): with 3 s between rounds, 4 KiB pages 208-323 ms and huge pages
-/// 1,367-1,788 ms; back to back, 214-239 against 82-109 ms (the first huge round
-/// 1,718). perf of `build_time 10000000 1 1` (two builds, 4 kHz `cpu-clock`), samples
-/// under page faults by the faulting function: with the advice 6,337 in
-/// `partition_on_axis` (the root's partition into the fresh scratch array), 4,241
-/// making the references, 1,113 the collapse's nodes, 864 `sysmalloc` (the child
-/// pairs' heap), 166 the triangle groups, 12,927 in all; without it 1,196 / 1,177 /
-/// 859 / 2,548 / 1,364, 7,722 in all (the later arrays now get more of the reported
-/// blocks, but the build pays ~650 ms less per build). CPU ms per 10^7 build
-/// (`build_time 10000000 2 1`, medians of 2, interleaved with the build before, load
-/// 4.8-8.8 with compiles running): 6,651 / 5,467 / 5,221 before against 4,556 / 4,670 /
-/// 3,861; with the 48-byte [`BuildNode`] too (load 4.3-5.2), 4,670 / 4,585 / 3,905
-/// against 4,051 / 3,977 / 3,834, wall ms 13,689 / 6,496 / 3,950 against 10,791 /
-/// 5,765 / 3,767 (2.65 Mtriangles/s in the quietest round). Page faults per build
-/// 69,058 -> 247,396 (4 KiB each now). On a host without free-page reporting the
-/// advice would win instead (the back-to-back rounds above). Before, an advised array
-/// larger than this was advised over every page it touched, so that `mremap` could
-/// still move it whole ([`SpareRefs::into_vec`]); unadvised it needs no care."
-///
-/// On a quiet host (load 0.9-1.5, 04:44-04:47 UTC) the advice wins: `build_time
-/// 10000000 2 1` interleaved with the session's starting build, 5 rounds (the order
-/// swapped in the last two), wall ms medians of the starting build (the advice, 64-byte
-/// `BuildNode`s) 3,462 / 3,610 / 3,361 / 3,521 / 3,486 against 3,563 / 3,792 / 3,816 /
-/// 3,880 / 3,860 for bld23's (no advice above 32 MiB, 48-byte nodes, the latter within
-/// the noise on its own): slower in every round, 2.62 against 2.87 Mtriangles/s at the
-/// median. Which side wins depends on
-/// whether the host is reclaiming reported pages at the time; the quiet figure is the
-/// one the project quotes, so the advice stays.
-fn advise_huge_pages(ptr: *mut u8, len: usize) {
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE: usize = 2 << 20;
-        const PAGE: usize = 4 << 10;
-        if len < 2 * HUGE {
-            return;
-        }
-        let (first, last) = (ptr as usize, ptr as usize + len);
-        let (start, end) = if len >= RECYCLE_MIN_BYTES {
-            (first / PAGE * PAGE, last.next_multiple_of(PAGE))
-        } else {
-            (first.next_multiple_of(HUGE), last / HUGE * HUGE)
-        };
-        if end > start {
-            // SAFETY: the range is (at most) the pages the live allocation lies in;
-            // MADV_HUGEPAGE only changes how pages are backed, never their contents, so
-            // it leaves anything else on the first and last page as it was.
-            unsafe {
-                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
-            }
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = (ptr, len);
 }
 
 /// Bounds and centroid bounds of `refs`.

@@ -2,6 +2,7 @@
 
 use super::color::linear_to_srgb8;
 use crate::error::{Error, Result};
+use crate::pages::advise_huge_pages;
 use glam::Vec3;
 
 /// Linear RGB radiance per pixel, row 0 at the top.
@@ -19,14 +20,17 @@ impl Film {
     /// 1024x768 frame serially before any tile started: 5-11 ms of the render phase
     /// (whitted_base, 1 thread, loaded machine), one thread working and one waiting.
     ///
-    /// Dead end: `madvise(MADV_HUGEPAGE)` on the frame. First touch of a fresh 4 KiB
+    /// Large frames are advised for huge pages before their first touch (session 26,
+    /// measured on [`advise_huge_pages`]); the dead end below was a fragmented guest.
+    ///
+    /// Dead end then: `madvise(MADV_HUGEPAGE)` on the frame. First touch of a fresh 4 KiB
     /// page costs 4-18 us on this VM (9.4 MB touched in 21-39 ms, 6 runs, load 7.5),
     /// and huge pages made it 1.7-2.3 ms in half the runs but 46-120 ms in the others
     /// (direct compaction; the `madvise` call itself took up to 10 ms), so the bunny
     /// frame's `resolve` stage went from 30-38 ms to 7-110 ms. `MADV_POPULATE_WRITE`
     /// on the whole frame in one call here cost as much as touching (16-28 ms, serial);
     /// per band of rows, by the thread that renders it, it saves the trap per page
-    /// (`film/prefault.rs`, called from the tile renderer).
+    /// (`pages/populate.rs`, called from the tile renderer).
     pub fn new(width: u32, height: u32) -> Self {
         Film {
             width,
@@ -130,6 +134,9 @@ fn zeroed_pixels(n: usize) -> Vec<Vec3> {
     if ptr.is_null() {
         std::alloc::handle_alloc_error(layout);
     }
+    // Before the first touch: the whole 2 MiB pages of a large frame as huge pages
+    // (measured on `pages::advise_huge_pages`).
+    advise_huge_pages(ptr.cast(), layout.size());
     // SAFETY: allocated by the global allocator with the layout of `n` Vec3s (the
     // layout `Vec<Vec3>` frees with), and all-zero bytes are a valid Vec3 (0.0 thrice).
     unsafe { Vec::from_raw_parts(ptr, n, n) }
@@ -156,6 +163,21 @@ mod tests {
 
     /// The zero-allocated frame is black, every pixel, at any size (0 included), and
     /// frees like any vector (a second frame reuses the allocator without complaint).
+    /// A frame of 8 MiB and more gets huge-page advice before its first touch (the
+    /// mapping that holds its first whole 2 MiB page is flagged `hg`), and reads black.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn large_frame_is_advised_for_huge_pages() {
+        let film = Film::new(1024, 768);
+        let inner = (film.pixels.as_ptr() as usize).next_multiple_of(2 << 20);
+        let flags = crate::pages::vm_flags_at(inner).expect("the film's mapping in smaps");
+        assert!(
+            flags.iter().any(|f| f == "hg"),
+            "film not advised: {flags:?}"
+        );
+        assert!(film.pixels.iter().all(|p| *p == Vec3::ZERO));
+    }
+
     #[test]
     fn new_frame_is_black() {
         for (w, h) in [(0, 0), (1, 1), (3, 4), (1024, 768)] {

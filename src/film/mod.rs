@@ -9,7 +9,6 @@ pub mod merge;
 mod output;
 pub mod partial;
 mod pixel_sums;
-mod prefault;
 mod preflight;
 pub mod tonemap;
 
@@ -20,6 +19,5 @@ pub use output::{
     write_atomic,
 };
 pub use pixel_sums::PixelSums;
-pub(crate) use prefault::populate_for_writing;
 pub use preflight::check_output_paths;
 pub use tonemap::{Display8, ImageOptions, ToneMap};

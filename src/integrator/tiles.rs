@@ -5,7 +5,8 @@
 use super::camera_rays::CameraSampler;
 use super::pixel_filter::TileOut;
 use super::{RenderOptions, RenderOutput};
-use crate::film::{Film, PixelSums, partial, populate_for_writing};
+use crate::film::{Film, PixelSums, partial};
+use crate::pages::populate_for_writing;
 use crate::scene::Scene;
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes, ms_since};
 use glam::Vec3;
@@ -121,8 +122,7 @@ pub(crate) fn render_tiles<W: Send>(
         .with_max_len(1)
         .map(|(ty, band)| {
             // The band's pages mapped in one call, not one fault per page as its tiles
-            // copy their rows in (`film::populate_for_writing`); counted in `resolve`,
-            // where those faults were.
+            // copy their rows in (`pages::populate_for_writing`); counted as `film`.
             let t = Instant::now();
             populate_for_writing(band);
             let populate = ms_since(t);
@@ -166,7 +166,7 @@ pub(crate) fn render_tiles<W: Send>(
                 })
                 .collect();
             let mut band = Band::merge(tiles, keep);
-            band.stages.resolve += populate;
+            band.stages.film += populate;
             band
         })
         .collect();

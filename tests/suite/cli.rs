@@ -53,6 +53,15 @@ fn renders_a_shipped_scene_with_stats() {
             "time_ms.{phase}"
         );
     }
+    // Page faults by phase: counted on Linux (a render maps fresh memory in some
+    // phase), present as counts everywhere.
+    let faults: Vec<u64> = ["load", "build", "render", "write"]
+        .iter()
+        .map(|p| s["page_faults"][p].as_u64().expect("page_faults.{p}"))
+        .collect();
+    if cfg!(target_os = "linux") {
+        assert!(faults.iter().sum::<u64>() > 0, "no page faults counted");
+    }
     let features: Vec<&str> = s["features"]
         .as_array()
         .unwrap()

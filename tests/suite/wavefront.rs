@@ -330,6 +330,7 @@ fn stage_times_are_part_of_the_render_phase() {
         "refraction",
         "setup",
         "resolve",
+        "film",
         "assemble",
     ] {
         assert!(stages.contains_key(key), "missing stage {key}: {stages:?}");

@@ -1,7 +1,7 @@
 //! Mapping a span of fresh memory in one call before it is written.
 //!
 //! The film comes from `alloc_zeroed` (zero pages from the kernel, see
-//! [`Film::new`](super::Film::new)), so each 4 KiB page of it is mapped by a page fault
+//! [`Film::new`](crate::film::Film::new)), so each 4 KiB page of it is mapped by a page fault
 //! when the tile renderer first writes it: 3,072 faults for the bunny's 12 MB frame,
 //! 2,304 for a 1024x768 one. On this VM a fault costs 1.3-4.3 us, and the bunny frame's
 //! `resolve` stage (the tile-to-film copy, where those faults land) was 6.8-10.0 ms of
@@ -19,8 +19,10 @@
 //! -> 6.5/14.5 ms; the render phase did not move outside that noise.
 //!
 //! Called per band of rows by the thread that renders it, so at 2 threads the bands are
-//! mapped in parallel. The dead end in `Film::new` was one call for the whole frame
-//! before any tile (serial, 16-28 ms at load 7.5).
+//! mapped in parallel. Since session 26 the film is advised for huge pages first
+//! (`pages::advise_huge_pages`): a band then maps the whole 2 MiB pages it lies in.
+//! The dead end in `Film::new` was one call for the whole frame before any tile
+//! (serial, 16-28 ms at load 7.5).
 
 /// Asks the kernel to map every page that `span` touches as if written, so that the
 /// writes that follow take no page fault. Contents are unchanged (the kernel only
