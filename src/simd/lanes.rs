@@ -266,65 +266,6 @@ mod tests {
         assert_eq!(L::splat(f32::INFINITY).is_finite().bitmask(), 0);
     }
 
-    /// `load` and `splat` (one register load and broadcast at sixteen lanes with
-    /// AVX-512) give the bits of `from_array` of the same values, at every offset of a
-    /// slice (unaligned loads), for NaN payloads, signed zeros, infinities and
-    /// subnormals.
-    fn check_load_and_splat<L: Lanes>() {
-        let specials = [
-            f32::from_bits(0x7fc0_1234),
-            f32::from_bits(0xffa0_0001),
-            -0.0,
-            0.0,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::from_bits(1),
-            -1.5e-40,
-            3.25,
-        ];
-        let values: Vec<f32> = (0..L::WIDTH + 37)
-            .map(|i| {
-                if i % 3 == 0 {
-                    specials[i / 3 % specials.len()]
-                } else {
-                    i as f32 * -0.37
-                }
-            })
-            .collect();
-        let bits = |a: L::Array| a.as_ref().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        for start in 0..values.len() - L::WIDTH {
-            let s = &values[start..];
-            let mut a = L::splat(0.0).to_array();
-            a.as_mut().copy_from_slice(&s[..L::WIDTH]);
-            assert_eq!(bits(L::load(s).to_array()), bits(a), "load at {start}");
-        }
-        for &x in &specials {
-            let mut a = L::splat(0.0).to_array();
-            a.as_mut().fill(x);
-            assert_eq!(bits(L::splat(x).to_array()), bits(a), "splat of {x}");
-        }
-    }
-
-    #[test]
-    fn load_and_splat_keep_every_bit() {
-        check_load_and_splat::<F4>();
-        check_load_and_splat::<F8>();
-        check_load_and_splat::<F16>();
-        // The free functions behind `F16`'s `load` and `splat`, and `V3`'s.
-        let a: [f32; 16] = std::array::from_fn(|i| f32::from_bits(0x7f80_0001 + i as u32));
-        assert_eq!(load16(&a).to_array().map(f32::to_bits), a.map(f32::to_bits));
-        let nan = f32::from_bits(0xffc0_0abc);
-        assert_eq!(
-            splat16(nan).to_array().map(f32::to_bits),
-            [nan.to_bits(); 16]
-        );
-        let v = crate::simd::lanes3::V3::splat(glam::Vec3::new(-0.0, nan, 1e-42));
-        assert_eq!(v.y.to_array().map(f32::to_bits), [nan.to_bits(); 16]);
-        assert_eq!(v.x.to_array().map(f32::to_bits), [(-0.0f32).to_bits(); 16]);
-        let l = crate::simd::lanes3::V3::load(&a, &a[..], &a);
-        assert_eq!(l.z.to_array().map(f32::to_bits), a.map(f32::to_bits));
-    }
-
     #[test]
     fn lane_contracts_hold_for_every_width() {
         check::<F4>();
