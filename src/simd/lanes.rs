@@ -56,14 +56,14 @@ pub trait Lanes:
 }
 
 macro_rules! impl_lanes {
-    ($t:ty, $i:ty, $n:expr, $load:path, $splat:path) => {
+    ($t:ty, $i:ty, $n:expr, $load:path) => {
         impl Lanes for $t {
             const WIDTH: usize = $n;
             type Array = [f32; $n];
 
             #[inline(always)]
             fn splat(x: f32) -> Self {
-                $splat(x)
+                <$t>::splat(x)
             }
             #[inline(always)]
             fn from_array(a: [f32; $n]) -> Self {
@@ -150,9 +150,9 @@ macro_rules! impl_lanes {
     };
 }
 
-impl_lanes!(f32x4, i32x4, 4, f32x4::new, f32x4::splat);
-impl_lanes!(f32x8, i32x8, 8, f32x8::new, f32x8::splat);
-impl_lanes!(f32x16, i32x16, 16, load16, splat16);
+impl_lanes!(f32x4, i32x4, 4, f32x4::new);
+impl_lanes!(f32x8, i32x8, 8, f32x8::new);
+impl_lanes!(f32x16, i32x16, 16, load16);
 
 /// Sixteen lanes from an array in memory as one 64-byte load (AVX-512).
 ///
@@ -176,30 +176,6 @@ fn load16(a: &[f32; 16]) -> f32x16 {
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
     {
         f32x16::new(*a)
-    }
-}
-
-/// `x` in all sixteen lanes as one register broadcast (AVX-512).
-///
-/// Why: `f32x16::splat` builds an array `[x; 16]` and transmutes it, and where the
-/// lanes went on into a struct kept on the stack (`SurfaceLanes::albedo` of a material
-/// without a checker, in the shading stage) LLVM stored the array as two 32-byte
-/// broadcasts; the field's later 64-byte loads could not be forwarded from them (the
-/// multiply reading `albedo.y` held 3.3 % of `shade_group_lanes`' samples, perf
-/// annotate, whitted_blur16, 1 thread, AVX-512). One `vbroadcastss` into a register
-/// instead: a spill of it is a whole 64-byte store.
-#[inline(always)]
-pub fn splat16(x: f32) -> f32x16 {
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
-    {
-        use std::arch::x86_64::{__m512, _mm512_set1_ps};
-        // SAFETY: AVX-512F is enabled at compile time, and `f32x16` is one `__m512`
-        // there (64 bytes, the same lanes in the same order).
-        unsafe { std::mem::transmute::<__m512, f32x16>(_mm512_set1_ps(x)) }
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
-    {
-        f32x16::splat(x)
     }
 }
 

@@ -66,13 +66,10 @@ pub struct V3 {
 impl V3 {
     #[inline(always)]
     pub fn splat(v: Vec3) -> V3 {
-        // Register broadcasts (`lanes::splat16`: `f32x16::splat` went through an
-        // array that a struct on the stack stored in 32-byte halves).
-        let l = <Packet as super::Lanes>::splat;
         V3 {
-            x: l(v.x),
-            y: l(v.y),
-            z: l(v.z),
+            x: Packet::splat(v.x),
+            y: Packet::splat(v.y),
+            z: Packet::splat(v.z),
         }
     }
 
