@@ -218,7 +218,7 @@ impl LightPoints {
     /// `samples`): `u`, `v`, and the mask of the lanes that hold one of the `samples`
     /// points.
     pub(crate) fn group(&self, c: usize, samples: u32) -> (Packet, Packet, u32) {
-        let lane = |a: &[f32]| Packet::load(&a[c..]);
+        let lane = |a: &[f32]| Packet::new(a[c..c + 16].try_into().expect("16 lanes"));
         let left = samples as usize - c;
         let active = if left >= 16 {
             0xffff
@@ -455,7 +455,7 @@ pub(crate) fn shade_quads_packed(
     // The points' own values (not the batch's) splatted over their blocks
     // (`per_block`: in registers, no stores to load back).
     let per_point = |f: fn(&ShadingPoint) -> Vec3| per_block(n, shift, |j| f(&pts[j]));
-    let smooth = Packet::load(&batch.smooth[k0..]);
+    let smooth = Packet::new(batch.smooth[k0..k0 + 16].try_into().expect("16 lanes"));
     let s = SurfaceLanes {
         p: gather(&batch.p),
         p_error: gather(&batch.p_error),
@@ -553,7 +553,7 @@ pub(crate) fn shade_quads_packed(
                 }
                 u.resize(16, 0.0);
                 v.resize(16, 0.0);
-                let lane = |a: &[f32]| Packet::load(a);
+                let lane = |a: &[f32]| Packet::new(a[..16].try_into().expect("16 lanes"));
                 (lane(u), lane(v))
             }
         };

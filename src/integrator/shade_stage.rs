@@ -37,6 +37,7 @@ use super::slot_pixels::SlotPixels;
 use super::tiny_shadow::LaneOccluders;
 use crate::accel::SceneHit;
 use crate::scene::{Light, Scene};
+use crate::simd::Packet;
 use crate::simd::direct_light::{
     Highlight, QuadLight, ShadowLanes, SurfaceLanes, checker_albedo, directional_light, point_light,
 };
@@ -44,7 +45,6 @@ use crate::simd::lane_rays::lane_rays;
 use crate::simd::lanes3::{V3, is_run, offset_ray_origin as lane_offset};
 use crate::simd::ray_store::append_rays;
 use crate::simd::specular;
-use crate::simd::{Lanes, Packet};
 use crate::stats::{EffectSamplesDrawn, RayCounts};
 use glam::Vec3;
 
@@ -454,13 +454,13 @@ fn shade_group_lanes(
             ng,
             ns: batch.ns.lanes(j),
             base: batch.base.lanes(j),
-            smooth: Packet::load(&batch.smooth[j..]),
+            smooth: Packet::new(batch.smooth[j..j + 16].try_into().expect("16 lanes")),
             wo: d.negated(),
             albedo: V3::splat(m.diffuse),
         };
         if lit && let Some(c) = &m.checker {
             // The winding normal, as the scalar shader's checker lookup.
-            let front = Packet::load(&batch.front[j..]);
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
             let outward = V3::select(front, ng, ng.negated());
             let (a, mut redo) = checker_albedo(c, s.p, s.p_error, outward);
             s.albedo = a;
@@ -542,7 +542,7 @@ fn shade_group_lanes(
             }
         }
         if lane_children {
-            let front = Packet::load(&batch.front[j..]);
+            let front = Packet::new(batch.front[j..j + 16].try_into().expect("16 lanes"));
             specular_children(shader, m, n, &s, d, front, &paths, &children, kids, sinks);
         }
         j += 16;

@@ -56,7 +56,7 @@ pub trait Lanes:
 }
 
 macro_rules! impl_lanes {
-    ($t:ty, $i:ty, $n:expr, $load:path) => {
+    ($t:ty, $i:ty, $n:expr) => {
         impl Lanes for $t {
             const WIDTH: usize = $n;
             type Array = [f32; $n];
@@ -75,7 +75,8 @@ macro_rules! impl_lanes {
             }
             #[inline(always)]
             fn load(s: &[f32]) -> Self {
-                $load(s[..$n].try_into().expect("slice of at least WIDTH lanes"))
+                let a: [f32; $n] = s[..$n].try_into().expect("slice of at least WIDTH lanes");
+                <$t>::new(a)
             }
             #[inline(always)]
             fn minps(self, other: Self) -> Self {
@@ -150,34 +151,9 @@ macro_rules! impl_lanes {
     };
 }
 
-impl_lanes!(f32x4, i32x4, 4, f32x4::new);
-impl_lanes!(f32x8, i32x8, 8, f32x8::new);
-impl_lanes!(f32x16, i32x16, 16, load16);
-
-/// Sixteen lanes from an array in memory as one 64-byte load (AVX-512).
-///
-/// Why: `f32x16::new` takes the array by value, and where the lanes went on into a
-/// struct kept on the stack (`SurfaceLanes` in the shading stage) LLVM copied the array
-/// in two 32-byte halves (its `memcpy` lowering under `prefer-256-bit`); the field's
-/// later 64-byte load then could not be forwarded from the two stores and waited for
-/// them to reach the cache. `perf annotate` of `shade_group_lanes` (whitted_blur16, 1
-/// thread, AVX-512): 6.4 % of its samples on the `SurfaceLanes` copy. One `vmovups`
-/// into a register instead: a spill of it is a whole 64-byte store.
-#[inline(always)]
-fn load16(a: &[f32; 16]) -> f32x16 {
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
-    {
-        use std::arch::x86_64::{__m512, _mm512_loadu_ps};
-        // SAFETY: AVX-512F is enabled at compile time; `a` is sixteen readable f32
-        // (an unaligned load), and `f32x16` is one `__m512` there (64 bytes, the same
-        // lanes in the same order).
-        unsafe { std::mem::transmute::<__m512, f32x16>(_mm512_loadu_ps(a.as_ptr())) }
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
-    {
-        f32x16::new(*a)
-    }
-}
+impl_lanes!(f32x4, i32x4, 4);
+impl_lanes!(f32x8, i32x8, 8);
+impl_lanes!(f32x16, i32x16, 16);
 
 /// Four lanes: one BVH4 node's children, one leaf group's triangles.
 pub type F4 = f32x4;

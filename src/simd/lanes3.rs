@@ -76,8 +76,7 @@ impl V3 {
     /// Lane `i` of the result is `(x[i], y[i], z[i])`; each slice holds at least 16.
     #[inline(always)]
     pub fn load(x: &[f32], y: &[f32], z: &[f32]) -> V3 {
-        // One 64-byte load per component (`Lanes::load`; see `lanes::load16`).
-        let l = |s: &[f32]| <Packet as super::Lanes>::load(s);
+        let l = |s: &[f32]| Packet::new(s[..16].try_into().expect("16 lanes"));
         V3 {
             x: l(x),
             y: l(y),
