@@ -433,11 +433,11 @@ fn shade_group_lanes(
         // ahead (two `LanePaths` and `ChildPaths` alternating, the next group's gathered
         // before this group's work), so that its scalar stores have reached the cache
         // when the group loads them as lanes. Images byte-identical; whitted_blur16
-        // 512x384, 1 thread, 21 interleaved rounds, load ~2 (on top of the whole-register
-        // loads and splats of `simd::lanes`): `perf stat -e task-clock` median 301.8 ms
-        // with it against 291.3 ms without, render min 244.5 against 239.7 ms (the
-        // gather became an out-of-line call). The multiply that seemed to wait on the
-        // weights was waiting on `albedo` (`lanes::splat16`).
+        // 512x384, 1 thread, 21 interleaved rounds, load ~2 (both on top of the
+        // whole-register loads and splats recorded at `simd::lanes`' `impl_lanes!`):
+        // `perf stat -e task-clock` median 301.8 ms with it against 291.3 ms without,
+        // render min 244.5 against 239.7 ms (the gather became an out-of-line call).
+        // The multiply that seemed to wait on the weights was waiting on `albedo`.
         let mut paths = LanePaths::default();
         queue.gather(
             &batch.ray[j..j + n],
