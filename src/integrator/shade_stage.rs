@@ -428,6 +428,16 @@ fn shade_group_lanes(
         // remainders (`CameraRun::paths`), 1 thread, host load ~4.7, interleaved:
         // shade stage medians aa3x3 740 -> 727 ms (11 rounds), blur16 1524 -> 1473 ms
         // (7 rounds), within the host's noise.
+        //
+        // Tried and not kept (helper blur26, 2026-11-29): the gather one lane group
+        // ahead (two `LanePaths` and `ChildPaths` alternating, the next group's gathered
+        // before this group's work), so that its scalar stores have reached the cache
+        // when the group loads them as lanes. Images byte-identical; whitted_blur16
+        // 512x384, 1 thread, 21 interleaved rounds, load ~2 (both on top of the
+        // whole-register loads and splats recorded at `simd::lanes`' `impl_lanes!`):
+        // `perf stat -e task-clock` median 301.8 ms with it against 291.3 ms without,
+        // render min 244.5 against 239.7 ms (the gather became an out-of-line call).
+        // The multiply that seemed to wait on the weights was waiting on `albedo`.
         let mut paths = LanePaths::default();
         queue.gather(
             &batch.ray[j..j + n],

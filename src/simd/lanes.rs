@@ -151,6 +151,21 @@ macro_rules! impl_lanes {
     };
 }
 
+// Tried and not kept (helper blur26, 2026-11-29): `load` and `splat` of `f32x16` as one
+// `_mm512_loadu_ps` / `_mm512_set1_ps` (transmuted to `f32x16`), and `V3::load` /
+// `V3::splat` through them. `wide`'s `new` and `splat` go through a `[f32; 16]`, and
+// where the lanes went on into a struct kept on the stack (`SurfaceLanes` in
+// `shade_group_lanes`) LLVM stored the array in 32-byte halves (its `memcpy` lowering
+// under `prefer-256-bit`), so the field's later 64-byte loads could not be forwarded
+// (perf annotate, whitted_blur16, 1 thread, AVX-512: 6.4 % of `shade_group_lanes` on the
+// `SurfaceLanes` copy, then 3.3 % on a multiply reading `albedo.y`, a `V3::splat`). With
+// both, every store there was whole, images byte-identical and the lib tests passed, but
+// no time moved beyond the host's noise: whitted_blur16 512x384, 1 thread, 25
+// interleaved rounds, load ~3, render min/median 236.0/250.2 -> 235.8/249.0 ms; aa3x3
+// (whitted_base --spp 9 --sampler grid) 512x384, 25 rounds, 128.5/139.7 -> 126.8/139.8 ms;
+// full frame blur16, 9 rounds, 993.0/1012.7 -> 991.6/1030.6 ms. (Out-of-order execution
+// hides the failed forwards; the README's `-prefer-256-bit` build, which made such copies
+// whole everywhere, was level too.)
 impl_lanes!(f32x4, i32x4, 4);
 impl_lanes!(f32x8, i32x8, 8);
 impl_lanes!(f32x16, i32x16, 16);
