@@ -171,8 +171,9 @@ impl Protocol {
     /// at a time:
     /// the arithmetic of `secondary_ray` (the test's oracle) lane by lane (the same
     /// operations in the same order, no fused multiply-add; IEEE division and square
-    /// root round the same in lanes; the diffuse rays' random numbers, sine and cosine
-    /// per lane by the scalar functions), so the rays are bit-identical to the scalar
+    /// root round the same in lanes; the diffuse rays' random numbers per lane by the
+    /// scalar function, their sine and cosine by libm's algorithm in lanes,
+    /// `simd::kernels::sin_cos_libm16`), so the rays are bit-identical to the scalar
     /// ones (test `secondary_lanes_are_the_scalar_rays`).
     ///
     /// Why: the scalar generation of a shadow ray per pixel, with the camera rays of
@@ -191,9 +192,8 @@ impl Protocol {
         let w = self.camera.width;
         let mut t = [0.0f32; 16];
         let mut n = [[0.0f32; 16]; 3];
-        // Diffuse: the pixel's `u1`, and the cosine and sine of `2 pi u2` by the scalar
-        // functions `cosine_dir` calls (lane twins would round differently).
-        let (mut u1, mut cos, mut sin) = ([0.0f32; 16], [0.0f32; 16], [0.0f32; 16]);
+        // Diffuse: the pixel's `u1` and `u2`.
+        let (mut u1, mut u2) = ([0.0f32; 16], [0.0f32; 16]);
         let diffuse = workload != Workload::Shadow;
         let mut m = hit;
         while m != 0 {
@@ -205,9 +205,7 @@ impl Protocol {
             let nk = self.normals[p.prim[i] as usize];
             (n[0][k], n[1][k], n[2][k]) = (nk.x, nk.y, nk.z);
             if diffuse {
-                let (a, b) = pixel_uniforms(y * w + x);
-                let phi = (2.0 * std::f64::consts::PI) as f32 * b;
-                (u1[k], cos[k], sin[k]) = (a, phi.cos(), phi.sin());
+                (u1[k], u2[k]) = pixel_uniforms(y * w + x);
             }
         }
         let s = F16::splat;
@@ -225,7 +223,12 @@ impl Protocol {
         // o = p + n * eps; to = light - o; tmax = |to| (glam's order); dir = to * (1 / tmax)
         let o = [0, 1, 2].map(|a| pt[a] + n[a] * eps);
         if diffuse {
-            // `cosine_dir`: local direction, Duff et al.'s basis, `normalize`.
+            // `cosine_dir`: local direction, Duff et al.'s basis, `normalize`. The
+            // cosine and sine of `phi = 2 pi u2` are libm's bit for bit, computed in
+            // lanes (`sin_cos_libm16`; libm's call per lane was 6 % of a bunny diffuse
+            // pass).
+            let phi = s((2.0 * std::f64::consts::PI) as f32) * F16::from_array(u2);
+            let (sin, cos) = crate::simd::kernels::sin_cos_libm16(&phi.to_array());
             let u1 = F16::from_array(u1);
             let r = u1.sqrt();
             let (lx, ly) = (r * F16::from_array(cos), r * F16::from_array(sin));
