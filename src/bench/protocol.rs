@@ -85,6 +85,21 @@ fn hit_bits(row: &[u32]) -> u32 {
     }
 }
 
+/// A stream mode's band (see [`Protocol::trace_band`]): its rays, the band pixel of
+/// each, and the answers; one set per thread, reused.
+#[derive(Default)]
+struct BandBuffers {
+    rays: Vec<Ray>,
+    slots: Vec<u32>,
+    t: Vec<f32>,
+    prim: Vec<u32>,
+    occ: Vec<bool>,
+}
+
+thread_local! {
+    static BAND_BUFFERS: std::cell::Cell<BandBuffers> = std::cell::Cell::new(BandBuffers::default());
+}
+
 /// The fixed ray set over one mesh.
 pub struct Protocol {
     pub tris: Triangles,
@@ -290,12 +305,19 @@ impl Protocol {
                 // A tile's valid rays in order, as four SoA packets of sixteen for packet
                 // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
                 let soa = mode.takes_packets();
-                // Stream modes: the band's valid rays and their pixels, traced at the end.
+                // Stream modes: the band's valid rays (in `rays`, not cleared per tile)
+                // and their pixels, traced at the end, in this thread's band buffers.
                 let band_mode = mode.takes_band();
-                let mut band_rays = Vec::new();
-                let mut band_slots = Vec::new();
+                let mut band = if band_mode {
+                    BAND_BUFFERS.take()
+                } else {
+                    BandBuffers::default()
+                };
+                band.slots.clear();
                 let mut packets = [RayPacket::default(); 4];
-                let mut rays = Vec::with_capacity(64);
+                let mut rays = std::mem::take(&mut band.rays);
+                rays.clear();
+                rays.reserve(64);
                 let mut camera = RayPacket::default();
                 let mut slots = [0usize; 64];
                 let mut hits = [None; 16];
@@ -304,7 +326,9 @@ impl Protocol {
                 let mut count = 0u64;
                 for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
                     for tx in (0..w).step_by(TILE as usize) {
-                        rays.clear();
+                        if !band_mode {
+                            rays.clear();
+                        }
                         let mut n = 0;
                         // Packet `b` is the whole 4x4 block whose top left band pixel
                         // is `blocks[b]` (its answers are written row by row from the
@@ -428,8 +452,7 @@ impl Protocol {
                         }
                         count += n as u64;
                         if band_mode {
-                            band_rays.extend_from_slice(&rays[..n]);
-                            band_slots.extend_from_slice(&slots[..n]);
+                            band.slots.extend(slots[..n].iter().map(|&s| s as u32));
                             continue;
                         }
                         for b in 0..n.div_ceil(16) {
@@ -488,38 +511,47 @@ impl Protocol {
                     }
                 }
                 if band_mode {
-                    self.trace_band(mode, workload, &band_rays, &band_slots, t_band, prim_band);
+                    band.rays = rays;
+                    self.trace_band(mode, workload, &mut band, t_band, prim_band);
+                    BAND_BUFFERS.set(band);
                 }
                 count
             })
             .sum()
     }
 
-    /// A stream mode's band: `rays` traced as one batch, the answer of ray `k` written
-    /// to band pixel `slots[k]`.
+    /// A stream mode's band: `band.rays` traced as one batch, the answer of ray `k`
+    /// written to band pixel `band.slots[k]`; closest hits come back as lanes
+    /// (`TraceMode::closest_lanes`: distance and triangle per ray, no `Option<Hit>`).
+    ///
+    /// Why (issue 12, pk26): the band's rays, pixels and answers were fresh `Vec`s per
+    /// band (the rays grown by doubling, each copied in from the tile's), and the
+    /// answers `Option<Hit>`s filled with `None`, scattered and read back with a branch
+    /// per ray: `memset`, `memmove` and this function's loop were ~4 % of a bunny
+    /// diffuse pass (`perf record` of `examples/stream_profile bunny.obj bvh8-stream
+    /// diffuse 40`). Now one set of buffers per thread, reused by every band and pass.
     fn trace_band(
         &self,
         mode: &dyn TraceMode,
         workload: Workload,
-        rays: &[Ray],
-        slots: &[usize],
+        band: &mut BandBuffers,
         t_band: &mut [f32],
         prim_band: &mut [u32],
     ) {
+        let n = band.rays.len();
         if workload == Workload::Shadow {
-            let mut occ = vec![false; rays.len()];
-            mode.occluded(rays, &mut occ);
-            for (&o, &s) in occ.iter().zip(slots) {
-                t_band[s] = if o { 1.0 } else { 0.0 };
+            band.occ.clear();
+            band.occ.resize(n, false);
+            mode.occluded(&band.rays, &mut band.occ);
+            for (&o, &s) in band.occ.iter().zip(&band.slots) {
+                t_band[s as usize] = if o { 1.0 } else { 0.0 };
             }
         } else {
-            let mut hits = vec![None; rays.len()];
-            mode.closest(rays, &mut hits);
-            for (h, &s) in hits.iter().zip(slots) {
-                (t_band[s], prim_band[s]) = match h {
-                    Some(hh) => (hh.t, hh.prim),
-                    None => (f32::NAN, u32::MAX),
-                };
+            band.t.resize(n, 0.0);
+            band.prim.resize(n, 0);
+            mode.closest_lanes(&band.rays, &mut band.t[..n], &mut band.prim[..n]);
+            for ((&t, &p), &s) in band.t[..n].iter().zip(&band.prim[..n]).zip(&band.slots) {
+                (t_band[s as usize], prim_band[s as usize]) = (t, p);
             }
         }
     }
