@@ -271,10 +271,14 @@ impl Protocol {
         }
     }
 
-    /// One pass of `workload` with `mode`; writes per-pixel results into `t_out` (hit
-    /// distance or NaN for a miss; for shadow rays 1.0 occluded / 0.0 free, NaN for a
-    /// pixel without a ray) and, unless shadow, `prim_out` (the triangle, `u32::MAX`
-    /// for a miss). Returns the number of rays traced.
+    /// One pass of `workload` with `mode`; writes per-pixel results: primary and
+    /// diffuse rays into `t_out` (hit distance or NaN for a miss) and `prim_out` (the
+    /// triangle, `u32::MAX` for a miss), shadow rays into `occ_out` alone (1 occluded,
+    /// 0 free or no ray: one byte per pixel, as Embree's harness writes). All three
+    /// have one entry per pixel. Returns the number of rays traced.
+    ///
+    /// Issue 12, pk26: a shadow pass wrote a 4-byte `t` per pixel (1.0 / 0.0 / NaN),
+    /// 4 MB per pass at 1024 x 1024 against the 1 MB of Embree's harness.
     ///
     /// Packet modes answer in lanes (`TraceMode::closest_packet_lanes`,
     /// `occluded_packet_bits`, as Embree's `rtcIntersect16` answers in `RTCRayHit16`),
@@ -292,15 +296,22 @@ impl Protocol {
         primary: Option<&PrimaryHits>,
         t_out: &mut [f32],
         prim_out: &mut [u32],
+        occ_out: &mut [u8],
     ) -> u64 {
         let (w, h) = (self.camera.width, self.camera.height);
         let band_len = (BAND * w) as usize;
+        let pixels = self.pixels();
+        assert!(
+            t_out.len() == pixels && prim_out.len() == pixels && occ_out.len() == pixels,
+            "one result per pixel"
+        );
         t_out
             .par_chunks_mut(band_len)
             .zip(prim_out.par_chunks_mut(band_len))
+            .zip(occ_out.par_chunks_mut(band_len))
             .enumerate()
             .with_max_len(1)
-            .map(|(band, (t_band, prim_band))| {
+            .map(|(band, ((t_band, prim_band), occ_band))| {
                 let y0 = band as u32 * BAND;
                 // A tile's valid rays in order, as four SoA packets of sixteen for packet
                 // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
@@ -412,8 +423,10 @@ impl Protocol {
                             for r in 0..rows {
                                 let (i, l) = (((yb + r) * w + x0) as usize, local((x0, yb + r)));
                                 hit |= hit_bits(&p.prim[i..i + cols]) << (4 * r);
-                                fill_row(t_band, l, cols, f32::NAN);
-                                if workload != Workload::Shadow {
+                                if workload == Workload::Shadow {
+                                    fill_row(occ_band, l, cols, 0u8);
+                                } else {
+                                    fill_row(t_band, l, cols, f32::NAN);
                                     fill_row(prim_band, l, cols, u32::MAX);
                                 }
                             }
@@ -462,11 +475,11 @@ impl Protocol {
                             if workload == Workload::Shadow {
                                 if soa {
                                     let bits = mode.occluded_packet_bits(&packets[b]);
-                                    let occ = |k: usize| f32::from(u8::from(bits >> k & 1 == 1));
+                                    let occ = |k: usize| u8::from(bits >> k & 1 == 1);
                                     if let Some(l) = blocks[b] {
                                         for r in 0..4 {
                                             let (row, k) = (l + r * w as usize, 4 * r);
-                                            t_band[row..row + 4].copy_from_slice(&[
+                                            occ_band[row..row + 4].copy_from_slice(&[
                                                 occ(k),
                                                 occ(k + 1),
                                                 occ(k + 2),
@@ -475,13 +488,13 @@ impl Protocol {
                                         }
                                     } else {
                                         for (k, &s) in slots.iter().enumerate() {
-                                            t_band[s] = occ(k);
+                                            occ_band[s] = occ(k);
                                         }
                                     }
                                 } else {
                                     mode.occluded(&rays[16 * b..16 * b + len], &mut occ[..len]);
                                     for (k, &s) in slots.iter().enumerate() {
-                                        t_band[s] = if occ[k] { 1.0 } else { 0.0 };
+                                        occ_band[s] = u8::from(occ[k]);
                                     }
                                 }
                             } else if soa {
@@ -512,7 +525,7 @@ impl Protocol {
                 }
                 if band_mode {
                     band.rays = rays;
-                    self.trace_band(mode, workload, &mut band, t_band, prim_band);
+                    self.trace_band(mode, workload, &mut band, (t_band, prim_band, occ_band));
                     BAND_BUFFERS.set(band);
                 }
                 count
@@ -535,8 +548,7 @@ impl Protocol {
         mode: &dyn TraceMode,
         workload: Workload,
         band: &mut BandBuffers,
-        t_band: &mut [f32],
-        prim_band: &mut [u32],
+        (t_band, prim_band, occ_band): (&mut [f32], &mut [u32], &mut [u8]),
     ) {
         let n = band.rays.len();
         if workload == Workload::Shadow {
@@ -544,7 +556,7 @@ impl Protocol {
             band.occ.resize(n, false);
             mode.occluded(&band.rays, &mut band.occ);
             for (&o, &s) in band.occ.iter().zip(&band.slots) {
-                t_band[s as usize] = if o { 1.0 } else { 0.0 };
+                occ_band[s as usize] = u8::from(o);
             }
         } else {
             band.t.resize(n, 0.0);
@@ -560,32 +572,33 @@ impl Protocol {
     pub fn primary_hits(&self, mode: &dyn TraceMode) -> PrimaryHits {
         let mut t = vec![0.0; self.pixels()];
         let mut prim = vec![0; self.pixels()];
-        self.pass(mode, Workload::Primary, None, &mut t, &mut prim);
+        let mut occ = vec![0; self.pixels()];
+        self.pass(mode, Workload::Primary, None, &mut t, &mut prim, &mut occ);
         PrimaryHits { t, prim }
     }
 
     /// Checksums of a pass's results, summed in f64 in pixel order.
-    pub fn checksums(workload: Workload, rays: u64, t: &[f32], prim: &[u32]) -> Checksums {
+    /// A shadow pass's results are `occ` alone (see [`pass`](Self::pass)).
+    pub fn checksums(
+        workload: Workload,
+        rays: u64,
+        t: &[f32],
+        prim: &[u32],
+        occ: &[u8],
+    ) -> Checksums {
         let mut c = Checksums {
             rays,
             hits_or_occluded: 0,
             sum_t: 0.0,
         };
+        if workload == Workload::Shadow {
+            c.hits_or_occluded = occ.iter().filter(|&&o| o == 1).count() as u64;
+            return c;
+        }
         for (tt, pp) in t.iter().zip(prim) {
-            match workload {
-                // A shadow pass writes `t` alone: 1.0 occluded, 0.0 free, NaN for a
-                // pixel without a ray.
-                Workload::Shadow => {
-                    if *tt == 1.0 {
-                        c.hits_or_occluded += 1;
-                    }
-                }
-                _ => {
-                    if *pp != u32::MAX {
-                        c.hits_or_occluded += 1;
-                        c.sum_t += *tt as f64;
-                    }
-                }
+            if *pp != u32::MAX {
+                c.hits_or_occluded += 1;
+                c.sum_t += *tt as f64;
             }
         }
         c
@@ -603,6 +616,7 @@ impl Protocol {
         let threads = rayon::current_num_threads();
         let mut t = vec![0.0; self.pixels()];
         let mut prim = vec![0; self.pixels()];
+        let mut occ = vec![0; self.pixels()];
         let mut best: Option<(Vec<f64>, f64)> = None;
         let mut rays = 0;
         let mut attempts = 0;
@@ -611,7 +625,7 @@ impl Protocol {
             // Warm-up: caches, page faults, the clock ramping up; at least one pass.
             let warm = Instant::now();
             loop {
-                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim, &mut occ);
                 if warm.elapsed().as_secs_f64() >= timing.warmup_s {
                     break;
                 }
@@ -625,7 +639,7 @@ impl Protocol {
             let c0 = cpu_time::process_cpu_seconds();
             for _ in 0..timing.reps {
                 let start = Instant::now();
-                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim, &mut occ);
                 secs.push(start.elapsed().as_secs_f64());
             }
             let cpu = cpu_time::process_cpu_seconds()
@@ -645,7 +659,7 @@ impl Protocol {
         }
         let (secs, cpu_util) = best.expect("at least one attempt");
         Measured {
-            checksums: Self::checksums(workload, rays, &t, &prim),
+            checksums: Self::checksums(workload, rays, &t, &prim, &occ),
             rates: secs.iter().map(|s| rays as f64 / s / 1e6).collect(),
             cpu_util,
             attempts,
@@ -691,6 +705,7 @@ mod tests {
         let mut camera = RayPacket::default();
         for workload in [Workload::Shadow, Workload::Diffuse] {
             let mut checked = 0u64;
+            let mut want_occ = vec![0u8; (w * h) as usize];
             // every 4x4 block, those the image clips included
             for y0 in (0..h).step_by(4) {
                 for x0 in (0..w).step_by(4) {
@@ -710,6 +725,9 @@ mod tests {
                         let dir = protocol.camera.dir(x, y);
                         let (t, prim) = (primary.t[i], primary.prim[i]);
                         let want = protocol.secondary_ray(workload, x, y, dir, t, prim);
+                        let mut occ = [false];
+                        scalar.occluded(&[want], &mut occ);
+                        want_occ[i] = u8::from(occ[0]);
                         let got = lanes.ray(k);
                         assert_eq!(bits(&got), bits(&want), "{workload:?} ({x}, {y})");
                         // and written straight into a packet's lane, the same ray
@@ -729,15 +747,39 @@ mod tests {
             assert!(checked > 500, "too few hits to check: {checked}");
             // The pass: every mode's answers equal the scalar reference's.
             let n = (w * h) as usize;
-            let (mut t0, mut p0) = (vec![0.0; n], vec![0; n]);
-            let rays = protocol.pass(scalar.as_ref(), workload, Some(&primary), &mut t0, &mut p0);
+            let (mut t0, mut p0, mut o0) = (vec![0.0; n], vec![0; n], vec![7; n]);
+            let rays = protocol.pass(
+                scalar.as_ref(),
+                workload,
+                Some(&primary),
+                &mut t0,
+                &mut p0,
+                &mut o0,
+            );
             assert_eq!(rays, checked);
+            if workload == Workload::Shadow {
+                // One byte per pixel: each ray's scalar occlusion, 0 without a ray.
+                assert_eq!(o0, want_occ, "shadow answers");
+                let occluded = o0.iter().filter(|&&o| o == 1).count();
+                assert!(
+                    occluded > 50 && occluded + 50 < checked as usize,
+                    "{occluded}"
+                );
+            }
             for mode in modes {
                 let m = build_mode(mode, &protocol.tris).expect("mode");
-                let (mut t1, mut p1) = (vec![0.0; n], vec![0; n]);
-                protocol.pass(m.as_ref(), workload, Some(&primary), &mut t1, &mut p1);
+                let (mut t1, mut p1, mut o1) = (vec![0.0; n], vec![0; n], vec![7; n]);
+                protocol.pass(
+                    m.as_ref(),
+                    workload,
+                    Some(&primary),
+                    &mut t1,
+                    &mut p1,
+                    &mut o1,
+                );
                 assert_eq!(t_bits(&t1), t_bits(&t0), "{workload:?} {mode}");
                 assert_eq!(p1, p0, "{workload:?} {mode}");
+                assert_eq!(o1, o0, "{workload:?} {mode}");
             }
         }
     }
