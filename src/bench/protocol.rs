@@ -368,6 +368,17 @@ impl Protocol {
                         // `stream_profile bunny.obj bvh8-packet shadow 60` (cpu 1.00):
                         // closure 28.97 / 29.51 % of the pass, medians 12.01 / 11.85
                         // Mrays/s, with it 34.73 / 32.26 %, 11.78 / 11.82.
+                        // Tried, no win (issue 12, pk26): tiles of 16 x 4 (four blocks side
+                        // by side), so a band is walked four rows at a time, as Embree's
+                        // packet16 harness walks it (half as many rows, so pages, of the
+                        // primary ids and distances and of the outputs in use at once: 32
+                        // 4 KB pages with 8 rows, the L2 streamer's limit). Same checksums.
+                        // `stream_profile bunny.obj MODE WORKLOAD REPS`, 4 interleaved
+                        // rounds, load 3.3, Mrays per CPU-second, 8 x 8 against 16 x 4:
+                        // bvh8-packet primary 52.2/55.8/54.0/56.0 against
+                        // 54.3/56.2/55.9/62.2, shadow 18.3/18.9/19.8/19.4 against
+                        // 18.8/18.4/19.5/18.6, bvh8-stream diffuse 6.95/6.64/6.59/6.91
+                        // against 6.77/6.86/6.88/6.58: within the noise.
                         for (bx, by) in [(0, 0), (4, 0), (0, 4), (4, 4)] {
                             let (x0, yb) = (tx + bx, ty + by);
                             if x0 >= w || yb >= h {
