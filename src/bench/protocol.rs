@@ -5,7 +5,7 @@ use super::cpu_time;
 use super::modes::TraceMode;
 use super::timing::{BUSY_SHARE, Measured, Timing};
 use super::workload::normalize;
-use super::workload::{BenchCamera, Framing, Workload, pixel_uniforms};
+use super::workload::{BenchCamera, Framing, Workload, pixel_uniforms_block};
 use crate::accel::Triangles;
 use crate::geometry::{Ray, RayPacket};
 use glam::Vec3;
@@ -174,7 +174,7 @@ impl Protocol {
                 Ray::segment(o, to * (1.0 / tmax), 0.0, tmax)
             }
             _ => {
-                let (u1, u2) = pixel_uniforms(y * cam.width + x);
+                let (u1, u2) = super::workload::pixel_uniforms(y * cam.width + x);
                 Ray::new(o, super::workload::cosine_dir(n, u1, u2))
             }
         }
@@ -207,8 +207,6 @@ impl Protocol {
         let w = self.camera.width;
         let mut t = [0.0f32; 16];
         let mut n = [[0.0f32; 16]; 3];
-        // Diffuse: the pixel's `u1` and `u2`.
-        let (mut u1, mut u2) = ([0.0f32; 16], [0.0f32; 16]);
         let diffuse = workload != Workload::Shadow;
         let mut m = hit;
         while m != 0 {
@@ -219,10 +217,14 @@ impl Protocol {
             t[k] = p.t[i];
             let nk = self.normals[p.prim[i] as usize];
             (n[0][k], n[1][k], n[2][k]) = (nk.x, nk.y, nk.z);
-            if diffuse {
-                (u1[k], u2[k]) = pixel_uniforms(y * w + x);
-            }
         }
+        // Diffuse: each pixel's `u1` and `u2`, sixteen at a time (every lane's, in the
+        // image or not, with a ray or not: unused lanes are never read back).
+        let (u1, u2) = if diffuse {
+            pixel_uniforms_block(x0, y0, w)
+        } else {
+            ([0.0; 16], [0.0; 16])
+        };
         let s = F16::splat;
         let t = F16::from_array(t);
         let d = camera.dir.map(F16::from_array);
