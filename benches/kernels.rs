@@ -36,14 +36,15 @@ fn traversal(c: &mut Criterion) {
         let primary = protocol.primary_hits(mode.as_ref());
         let mut t = vec![0.0; 256 * 256];
         let mut prim = vec![0; 256 * 256];
+        let mut occ = vec![0; 256 * 256];
         for workload in Workload::ALL {
             let p = (workload != Workload::Primary).then_some(&primary);
-            let rays = protocol.pass(mode.as_ref(), workload, p, &mut t, &mut prim);
+            let rays = protocol.pass(mode.as_ref(), workload, p, &mut t, &mut prim, &mut occ);
             g.throughput(Throughput::Elements(rays));
             g.bench_with_input(
                 BenchmarkId::new(*name, workload.name()),
                 &workload,
-                |b, &w| b.iter(|| protocol.pass(mode.as_ref(), w, p, &mut t, &mut prim)),
+                |b, &w| b.iter(|| protocol.pass(mode.as_ref(), w, p, &mut t, &mut prim, &mut occ)),
             );
         }
     }

@@ -73,6 +73,18 @@ pub trait Accel: Send + Sync {
         self.closest_hit_batch(rays, out);
     }
 
+    /// [`closest_hit_stream`](Self::closest_hit_stream)'s answers as lanes: ray `k`'s
+    /// distance and primitive in `t[k]` and `prim[k]`, NaN and `u32::MAX` where it has
+    /// none (`t` and `prim` at least as long as `rays`). The wide BVHs write them
+    /// straight from their stream's answers.
+    fn closest_hit_stream_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
+        let mut hits = vec![None; rays.len()];
+        self.closest_hit_stream(rays, &mut hits);
+        for ((h, t), p) in hits.iter().zip(t.iter_mut()).zip(prim.iter_mut()) {
+            (*t, *p) = h.map_or((f32::NAN, u32::MAX), |h| (h.t, h.prim));
+        }
+    }
+
     /// Occlusion for a large batch of rays traced as one stream.
     fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
         self.any_hit_batch(rays, out);

@@ -41,6 +41,15 @@ pub trait TraceMode: Send + Sync {
         self.occluded_packet(rays, &mut occ[..rays.len]);
         (0..16).fold(0, |m, k| m | u32::from(occ[k]) << k)
     }
+    /// [`closest`](Self::closest)'s answers as lanes: ray `k`'s distance and triangle in
+    /// `t[k]` and `prim[k]`, NaN and `u32::MAX` where it has none.
+    fn closest_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
+        let mut hits = vec![None; rays.len()];
+        self.closest(rays, &mut hits);
+        for ((h, t), p) in hits.iter().zip(t.iter_mut()).zip(prim.iter_mut()) {
+            (*t, *p) = h.map_or((f32::NAN, u32::MAX), |h| (h.t, h.prim));
+        }
+    }
     /// Whether the mode takes a whole band's rays as one batch (stream modes, as
     /// Embree's `rtcIntersect1M`), instead of one tile's at a time.
     fn takes_band(&self) -> bool {
@@ -236,6 +245,9 @@ impl TraceMode for Streamed {
     }
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) {
         self.accel.any_hit_stream(rays, out);
+    }
+    fn closest_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
+        self.accel.closest_hit_stream_lanes(rays, t, prim);
     }
     fn takes_band(&self) -> bool {
         true

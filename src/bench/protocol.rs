@@ -5,7 +5,7 @@ use super::cpu_time;
 use super::modes::TraceMode;
 use super::timing::{BUSY_SHARE, Measured, Timing};
 use super::workload::normalize;
-use super::workload::{BenchCamera, Framing, Workload, pixel_uniforms};
+use super::workload::{BenchCamera, Framing, Workload, pixel_uniforms_block};
 use crate::accel::Triangles;
 use crate::geometry::{Ray, RayPacket};
 use glam::Vec3;
@@ -85,6 +85,21 @@ fn hit_bits(row: &[u32]) -> u32 {
     }
 }
 
+/// A stream mode's band (see [`Protocol::trace_band`]): its rays, the band pixel of
+/// each, and the answers; one set per thread, reused.
+#[derive(Default)]
+struct BandBuffers {
+    rays: Vec<Ray>,
+    slots: Vec<u32>,
+    t: Vec<f32>,
+    prim: Vec<u32>,
+    occ: Vec<bool>,
+}
+
+thread_local! {
+    static BAND_BUFFERS: std::cell::Cell<BandBuffers> = std::cell::Cell::new(BandBuffers::default());
+}
+
 /// The fixed ray set over one mesh.
 pub struct Protocol {
     pub tris: Triangles,
@@ -159,7 +174,7 @@ impl Protocol {
                 Ray::segment(o, to * (1.0 / tmax), 0.0, tmax)
             }
             _ => {
-                let (u1, u2) = pixel_uniforms(y * cam.width + x);
+                let (u1, u2) = super::workload::pixel_uniforms(y * cam.width + x);
                 Ray::new(o, super::workload::cosine_dir(n, u1, u2))
             }
         }
@@ -171,8 +186,9 @@ impl Protocol {
     /// at a time:
     /// the arithmetic of `secondary_ray` (the test's oracle) lane by lane (the same
     /// operations in the same order, no fused multiply-add; IEEE division and square
-    /// root round the same in lanes; the diffuse rays' random numbers, sine and cosine
-    /// per lane by the scalar functions), so the rays are bit-identical to the scalar
+    /// root round the same in lanes; the diffuse rays' random numbers per lane by the
+    /// scalar function, their sine and cosine by libm's algorithm in lanes,
+    /// `simd::kernels::sin_cos_libm16`), so the rays are bit-identical to the scalar
     /// ones (test `secondary_lanes_are_the_scalar_rays`).
     ///
     /// Why: the scalar generation of a shadow ray per pixel, with the camera rays of
@@ -191,9 +207,6 @@ impl Protocol {
         let w = self.camera.width;
         let mut t = [0.0f32; 16];
         let mut n = [[0.0f32; 16]; 3];
-        // Diffuse: the pixel's `u1`, and the cosine and sine of `2 pi u2` by the scalar
-        // functions `cosine_dir` calls (lane twins would round differently).
-        let (mut u1, mut cos, mut sin) = ([0.0f32; 16], [0.0f32; 16], [0.0f32; 16]);
         let diffuse = workload != Workload::Shadow;
         let mut m = hit;
         while m != 0 {
@@ -204,12 +217,14 @@ impl Protocol {
             t[k] = p.t[i];
             let nk = self.normals[p.prim[i] as usize];
             (n[0][k], n[1][k], n[2][k]) = (nk.x, nk.y, nk.z);
-            if diffuse {
-                let (a, b) = pixel_uniforms(y * w + x);
-                let phi = (2.0 * std::f64::consts::PI) as f32 * b;
-                (u1[k], cos[k], sin[k]) = (a, phi.cos(), phi.sin());
-            }
         }
+        // Diffuse: each pixel's `u1` and `u2`, sixteen at a time (every lane's, in the
+        // image or not, with a ray or not: unused lanes are never read back).
+        let (u1, u2) = if diffuse {
+            pixel_uniforms_block(x0, y0, w)
+        } else {
+            ([0.0; 16], [0.0; 16])
+        };
         let s = F16::splat;
         let t = F16::from_array(t);
         let d = camera.dir.map(F16::from_array);
@@ -225,7 +240,12 @@ impl Protocol {
         // o = p + n * eps; to = light - o; tmax = |to| (glam's order); dir = to * (1 / tmax)
         let o = [0, 1, 2].map(|a| pt[a] + n[a] * eps);
         if diffuse {
-            // `cosine_dir`: local direction, Duff et al.'s basis, `normalize`.
+            // `cosine_dir`: local direction, Duff et al.'s basis, `normalize`. The
+            // cosine and sine of `phi = 2 pi u2` are libm's bit for bit, computed in
+            // lanes (`sin_cos_libm16`; libm's call per lane was 6 % of a bunny diffuse
+            // pass).
+            let phi = s((2.0 * std::f64::consts::PI) as f32) * F16::from_array(u2);
+            let (sin, cos) = crate::simd::kernels::sin_cos_libm16(&phi.to_array());
             let u1 = F16::from_array(u1);
             let r = u1.sqrt();
             let (lx, ly) = (r * F16::from_array(cos), r * F16::from_array(sin));
@@ -253,10 +273,14 @@ impl Protocol {
         }
     }
 
-    /// One pass of `workload` with `mode`; writes per-pixel results into `t_out` (hit
-    /// distance or NaN for a miss; for shadow rays 1.0 occluded / 0.0 free, NaN for a
-    /// pixel without a ray) and, unless shadow, `prim_out` (the triangle, `u32::MAX`
-    /// for a miss). Returns the number of rays traced.
+    /// One pass of `workload` with `mode`; writes per-pixel results: primary and
+    /// diffuse rays into `t_out` (hit distance or NaN for a miss) and `prim_out` (the
+    /// triangle, `u32::MAX` for a miss), shadow rays into `occ_out` alone (1 occluded,
+    /// 0 free or no ray: one byte per pixel, as Embree's harness writes). All three
+    /// have one entry per pixel. Returns the number of rays traced.
+    ///
+    /// Issue 12, pk26: a shadow pass wrote a 4-byte `t` per pixel (1.0 / 0.0 / NaN),
+    /// 4 MB per pass at 1024 x 1024 against the 1 MB of Embree's harness.
     ///
     /// Packet modes answer in lanes (`TraceMode::closest_packet_lanes`,
     /// `occluded_packet_bits`, as Embree's `rtcIntersect16` answers in `RTCRayHit16`),
@@ -274,25 +298,39 @@ impl Protocol {
         primary: Option<&PrimaryHits>,
         t_out: &mut [f32],
         prim_out: &mut [u32],
+        occ_out: &mut [u8],
     ) -> u64 {
         let (w, h) = (self.camera.width, self.camera.height);
         let band_len = (BAND * w) as usize;
+        let pixels = self.pixels();
+        assert!(
+            t_out.len() == pixels && prim_out.len() == pixels && occ_out.len() == pixels,
+            "one result per pixel"
+        );
         t_out
             .par_chunks_mut(band_len)
             .zip(prim_out.par_chunks_mut(band_len))
+            .zip(occ_out.par_chunks_mut(band_len))
             .enumerate()
             .with_max_len(1)
-            .map(|(band, (t_band, prim_band))| {
+            .map(|(band, ((t_band, prim_band), occ_band))| {
                 let y0 = band as u32 * BAND;
                 // A tile's valid rays in order, as four SoA packets of sixteen for packet
                 // modes or as a slice for the others; `slots[k]` is the band pixel of ray k.
                 let soa = mode.takes_packets();
-                // Stream modes: the band's valid rays and their pixels, traced at the end.
+                // Stream modes: the band's valid rays (in `rays`, not cleared per tile)
+                // and their pixels, traced at the end, in this thread's band buffers.
                 let band_mode = mode.takes_band();
-                let mut band_rays = Vec::new();
-                let mut band_slots = Vec::new();
+                let mut band = if band_mode {
+                    BAND_BUFFERS.take()
+                } else {
+                    BandBuffers::default()
+                };
+                band.slots.clear();
                 let mut packets = [RayPacket::default(); 4];
-                let mut rays = Vec::with_capacity(64);
+                let mut rays = std::mem::take(&mut band.rays);
+                rays.clear();
+                rays.reserve(64);
                 let mut camera = RayPacket::default();
                 let mut slots = [0usize; 64];
                 let mut hits = [None; 16];
@@ -301,7 +339,9 @@ impl Protocol {
                 let mut count = 0u64;
                 for ty in (y0..(y0 + BAND).min(h)).step_by(TILE as usize) {
                     for tx in (0..w).step_by(TILE as usize) {
-                        rays.clear();
+                        if !band_mode {
+                            rays.clear();
+                        }
                         let mut n = 0;
                         // Packet `b` is the whole 4x4 block whose top left band pixel
                         // is `blocks[b]` (its answers are written row by row from the
@@ -330,6 +370,17 @@ impl Protocol {
                         // `stream_profile bunny.obj bvh8-packet shadow 60` (cpu 1.00):
                         // closure 28.97 / 29.51 % of the pass, medians 12.01 / 11.85
                         // Mrays/s, with it 34.73 / 32.26 %, 11.78 / 11.82.
+                        // Tried, no win (issue 12, pk26): tiles of 16 x 4 (four blocks side
+                        // by side), so a band is walked four rows at a time, as Embree's
+                        // packet16 harness walks it (half as many rows, so pages, of the
+                        // primary ids and distances and of the outputs in use at once: 32
+                        // 4 KB pages with 8 rows, the L2 streamer's limit). Same checksums.
+                        // `stream_profile bunny.obj MODE WORKLOAD REPS`, 4 interleaved
+                        // rounds, load 3.3, Mrays per CPU-second, 8 x 8 against 16 x 4:
+                        // bvh8-packet primary 52.2/55.8/54.0/56.0 against
+                        // 54.3/56.2/55.9/62.2, shadow 18.3/18.9/19.8/19.4 against
+                        // 18.8/18.4/19.5/18.6, bvh8-stream diffuse 6.95/6.64/6.59/6.91
+                        // against 6.77/6.86/6.88/6.58: within the noise.
                         for (bx, by) in [(0, 0), (4, 0), (0, 4), (4, 4)] {
                             let (x0, yb) = (tx + bx, ty + by);
                             if x0 >= w || yb >= h {
@@ -385,8 +436,10 @@ impl Protocol {
                             for r in 0..rows {
                                 let (i, l) = (((yb + r) * w + x0) as usize, local((x0, yb + r)));
                                 hit |= hit_bits(&p.prim[i..i + cols]) << (4 * r);
-                                fill_row(t_band, l, cols, f32::NAN);
-                                if workload != Workload::Shadow {
+                                if workload == Workload::Shadow {
+                                    fill_row(occ_band, l, cols, 0u8);
+                                } else {
+                                    fill_row(t_band, l, cols, f32::NAN);
                                     fill_row(prim_band, l, cols, u32::MAX);
                                 }
                             }
@@ -425,8 +478,7 @@ impl Protocol {
                         }
                         count += n as u64;
                         if band_mode {
-                            band_rays.extend_from_slice(&rays[..n]);
-                            band_slots.extend_from_slice(&slots[..n]);
+                            band.slots.extend(slots[..n].iter().map(|&s| s as u32));
                             continue;
                         }
                         for b in 0..n.div_ceil(16) {
@@ -436,11 +488,11 @@ impl Protocol {
                             if workload == Workload::Shadow {
                                 if soa {
                                     let bits = mode.occluded_packet_bits(&packets[b]);
-                                    let occ = |k: usize| f32::from(u8::from(bits >> k & 1 == 1));
+                                    let occ = |k: usize| u8::from(bits >> k & 1 == 1);
                                     if let Some(l) = blocks[b] {
                                         for r in 0..4 {
                                             let (row, k) = (l + r * w as usize, 4 * r);
-                                            t_band[row..row + 4].copy_from_slice(&[
+                                            occ_band[row..row + 4].copy_from_slice(&[
                                                 occ(k),
                                                 occ(k + 1),
                                                 occ(k + 2),
@@ -449,13 +501,13 @@ impl Protocol {
                                         }
                                     } else {
                                         for (k, &s) in slots.iter().enumerate() {
-                                            t_band[s] = occ(k);
+                                            occ_band[s] = occ(k);
                                         }
                                     }
                                 } else {
                                     mode.occluded(&rays[16 * b..16 * b + len], &mut occ[..len]);
                                     for (k, &s) in slots.iter().enumerate() {
-                                        t_band[s] = if occ[k] { 1.0 } else { 0.0 };
+                                        occ_band[s] = u8::from(occ[k]);
                                     }
                                 }
                             } else if soa {
@@ -485,38 +537,46 @@ impl Protocol {
                     }
                 }
                 if band_mode {
-                    self.trace_band(mode, workload, &band_rays, &band_slots, t_band, prim_band);
+                    band.rays = rays;
+                    self.trace_band(mode, workload, &mut band, (t_band, prim_band, occ_band));
+                    BAND_BUFFERS.set(band);
                 }
                 count
             })
             .sum()
     }
 
-    /// A stream mode's band: `rays` traced as one batch, the answer of ray `k` written
-    /// to band pixel `slots[k]`.
+    /// A stream mode's band: `band.rays` traced as one batch, the answer of ray `k`
+    /// written to band pixel `band.slots[k]`; closest hits come back as lanes
+    /// (`TraceMode::closest_lanes`: distance and triangle per ray, no `Option<Hit>`).
+    ///
+    /// Why (issue 12, pk26): the band's rays, pixels and answers were fresh `Vec`s per
+    /// band (the rays grown by doubling, each copied in from the tile's), and the
+    /// answers `Option<Hit>`s filled with `None`, scattered and read back with a branch
+    /// per ray: `memset`, `memmove` and this function's loop were ~4 % of a bunny
+    /// diffuse pass (`perf record` of `examples/stream_profile bunny.obj bvh8-stream
+    /// diffuse 40`). Now one set of buffers per thread, reused by every band and pass.
     fn trace_band(
         &self,
         mode: &dyn TraceMode,
         workload: Workload,
-        rays: &[Ray],
-        slots: &[usize],
-        t_band: &mut [f32],
-        prim_band: &mut [u32],
+        band: &mut BandBuffers,
+        (t_band, prim_band, occ_band): (&mut [f32], &mut [u32], &mut [u8]),
     ) {
+        let n = band.rays.len();
         if workload == Workload::Shadow {
-            let mut occ = vec![false; rays.len()];
-            mode.occluded(rays, &mut occ);
-            for (&o, &s) in occ.iter().zip(slots) {
-                t_band[s] = if o { 1.0 } else { 0.0 };
+            band.occ.clear();
+            band.occ.resize(n, false);
+            mode.occluded(&band.rays, &mut band.occ);
+            for (&o, &s) in band.occ.iter().zip(&band.slots) {
+                occ_band[s as usize] = u8::from(o);
             }
         } else {
-            let mut hits = vec![None; rays.len()];
-            mode.closest(rays, &mut hits);
-            for (h, &s) in hits.iter().zip(slots) {
-                (t_band[s], prim_band[s]) = match h {
-                    Some(hh) => (hh.t, hh.prim),
-                    None => (f32::NAN, u32::MAX),
-                };
+            band.t.resize(n, 0.0);
+            band.prim.resize(n, 0);
+            mode.closest_lanes(&band.rays, &mut band.t[..n], &mut band.prim[..n]);
+            for ((&t, &p), &s) in band.t[..n].iter().zip(&band.prim[..n]).zip(&band.slots) {
+                (t_band[s as usize], prim_band[s as usize]) = (t, p);
             }
         }
     }
@@ -525,32 +585,33 @@ impl Protocol {
     pub fn primary_hits(&self, mode: &dyn TraceMode) -> PrimaryHits {
         let mut t = vec![0.0; self.pixels()];
         let mut prim = vec![0; self.pixels()];
-        self.pass(mode, Workload::Primary, None, &mut t, &mut prim);
+        let mut occ = vec![0; self.pixels()];
+        self.pass(mode, Workload::Primary, None, &mut t, &mut prim, &mut occ);
         PrimaryHits { t, prim }
     }
 
     /// Checksums of a pass's results, summed in f64 in pixel order.
-    pub fn checksums(workload: Workload, rays: u64, t: &[f32], prim: &[u32]) -> Checksums {
+    /// A shadow pass's results are `occ` alone (see [`pass`](Self::pass)).
+    pub fn checksums(
+        workload: Workload,
+        rays: u64,
+        t: &[f32],
+        prim: &[u32],
+        occ: &[u8],
+    ) -> Checksums {
         let mut c = Checksums {
             rays,
             hits_or_occluded: 0,
             sum_t: 0.0,
         };
+        if workload == Workload::Shadow {
+            c.hits_or_occluded = occ.iter().filter(|&&o| o == 1).count() as u64;
+            return c;
+        }
         for (tt, pp) in t.iter().zip(prim) {
-            match workload {
-                // A shadow pass writes `t` alone: 1.0 occluded, 0.0 free, NaN for a
-                // pixel without a ray.
-                Workload::Shadow => {
-                    if *tt == 1.0 {
-                        c.hits_or_occluded += 1;
-                    }
-                }
-                _ => {
-                    if *pp != u32::MAX {
-                        c.hits_or_occluded += 1;
-                        c.sum_t += *tt as f64;
-                    }
-                }
+            if *pp != u32::MAX {
+                c.hits_or_occluded += 1;
+                c.sum_t += *tt as f64;
             }
         }
         c
@@ -568,6 +629,7 @@ impl Protocol {
         let threads = rayon::current_num_threads();
         let mut t = vec![0.0; self.pixels()];
         let mut prim = vec![0; self.pixels()];
+        let mut occ = vec![0; self.pixels()];
         let mut best: Option<(Vec<f64>, f64)> = None;
         let mut rays = 0;
         let mut attempts = 0;
@@ -576,7 +638,7 @@ impl Protocol {
             // Warm-up: caches, page faults, the clock ramping up; at least one pass.
             let warm = Instant::now();
             loop {
-                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim, &mut occ);
                 if warm.elapsed().as_secs_f64() >= timing.warmup_s {
                     break;
                 }
@@ -590,7 +652,7 @@ impl Protocol {
             let c0 = cpu_time::process_cpu_seconds();
             for _ in 0..timing.reps {
                 let start = Instant::now();
-                rays = self.pass(mode, workload, primary, &mut t, &mut prim);
+                rays = self.pass(mode, workload, primary, &mut t, &mut prim, &mut occ);
                 secs.push(start.elapsed().as_secs_f64());
             }
             let cpu = cpu_time::process_cpu_seconds()
@@ -610,7 +672,7 @@ impl Protocol {
         }
         let (secs, cpu_util) = best.expect("at least one attempt");
         Measured {
-            checksums: Self::checksums(workload, rays, &t, &prim),
+            checksums: Self::checksums(workload, rays, &t, &prim, &occ),
             rates: secs.iter().map(|s| rays as f64 / s / 1e6).collect(),
             cpu_util,
             attempts,
@@ -656,6 +718,7 @@ mod tests {
         let mut camera = RayPacket::default();
         for workload in [Workload::Shadow, Workload::Diffuse] {
             let mut checked = 0u64;
+            let mut want_occ = vec![0u8; (w * h) as usize];
             // every 4x4 block, those the image clips included
             for y0 in (0..h).step_by(4) {
                 for x0 in (0..w).step_by(4) {
@@ -675,6 +738,9 @@ mod tests {
                         let dir = protocol.camera.dir(x, y);
                         let (t, prim) = (primary.t[i], primary.prim[i]);
                         let want = protocol.secondary_ray(workload, x, y, dir, t, prim);
+                        let mut occ = [false];
+                        scalar.occluded(&[want], &mut occ);
+                        want_occ[i] = u8::from(occ[0]);
                         let got = lanes.ray(k);
                         assert_eq!(bits(&got), bits(&want), "{workload:?} ({x}, {y})");
                         // and written straight into a packet's lane, the same ray
@@ -694,15 +760,39 @@ mod tests {
             assert!(checked > 500, "too few hits to check: {checked}");
             // The pass: every mode's answers equal the scalar reference's.
             let n = (w * h) as usize;
-            let (mut t0, mut p0) = (vec![0.0; n], vec![0; n]);
-            let rays = protocol.pass(scalar.as_ref(), workload, Some(&primary), &mut t0, &mut p0);
+            let (mut t0, mut p0, mut o0) = (vec![0.0; n], vec![0; n], vec![7; n]);
+            let rays = protocol.pass(
+                scalar.as_ref(),
+                workload,
+                Some(&primary),
+                &mut t0,
+                &mut p0,
+                &mut o0,
+            );
             assert_eq!(rays, checked);
+            if workload == Workload::Shadow {
+                // One byte per pixel: each ray's scalar occlusion, 0 without a ray.
+                assert_eq!(o0, want_occ, "shadow answers");
+                let occluded = o0.iter().filter(|&&o| o == 1).count();
+                assert!(
+                    occluded > 50 && occluded + 50 < checked as usize,
+                    "{occluded}"
+                );
+            }
             for mode in modes {
                 let m = build_mode(mode, &protocol.tris).expect("mode");
-                let (mut t1, mut p1) = (vec![0.0; n], vec![0; n]);
-                protocol.pass(m.as_ref(), workload, Some(&primary), &mut t1, &mut p1);
+                let (mut t1, mut p1, mut o1) = (vec![0.0; n], vec![0; n], vec![7; n]);
+                protocol.pass(
+                    m.as_ref(),
+                    workload,
+                    Some(&primary),
+                    &mut t1,
+                    &mut p1,
+                    &mut o1,
+                );
                 assert_eq!(t_bits(&t1), t_bits(&t0), "{workload:?} {mode}");
                 assert_eq!(p1, p0, "{workload:?} {mode}");
+                assert_eq!(o1, o0, "{workload:?} {mode}");
             }
         }
     }

@@ -537,6 +537,186 @@ fn roots_of<L: Lanes, const SKIP: bool>(
     (lo, hi, real & nonzero)
 }
 
+/// The constants of glibc's `sincosf` (`sysdeps/ieee754/flt-32/s_sincosf_data.c`,
+/// `__sincosf_table`, from Arm's optimized-routines): `2/π · 2^24`, `π/2`, the cosine
+/// polynomial `c0..c4` of the first table (the second, used in quadrants 2 and 3, is
+/// its negation) and the sine polynomial `s1..s3` (the same in both).
+mod glibc_sincosf {
+    pub const HPI_INV: f64 = f64::from_bits(0x4164_5f30_6dc9_c883);
+    pub const HPI: f64 = f64::from_bits(0x3ff9_21fb_5444_2d18);
+    pub const C: [f64; 5] = [
+        1.0,
+        f64::from_bits(0xbfdf_ffff_fd0c_621c),
+        f64::from_bits(0x3fa5_5553_e106_8f19),
+        f64::from_bits(0xbf56_c087_e89a_359d),
+        f64::from_bits(0x3ef9_9343_027b_f8c3),
+    ];
+    pub const S: [f64; 3] = [
+        f64::from_bits(0xbfc5_5554_5995_a603),
+        f64::from_bits(0x3f81_1076_0523_0bc4),
+        f64::from_bits(0xbf29_94eb_3774_cf24),
+    ];
+}
+
+/// `(sin y, cos y)` of one `f32` as glibc 2.36's `sincosf` computes them in its FMA
+/// build (`__sincosf_fma`, which libm picks on this AVX-512 machine), for `|y| < 120`
+/// (the range of its fast reduction), written branch-free so that sixteen lanes of it
+/// vectorise ([`sin_cos_libm16`]). The same operations in the same order, each `a + b
+/// c` of `sincosf_poly` one fused multiply-add as the FMA build compiles it (read
+/// from its disassembly): `|y| < 2^-12` returns `(y, 1)`; below the top-12-bits bound
+/// of `π/4` the polynomials run on `y` itself; above it `y` is reduced by the nearest
+/// multiple `n` of `π/2` (`n` from `y · 2/π · 2^24` truncated, plus `2^23`, shifted
+/// down by 24) and the quadrant picks the sign of the sine, the cosine table's sign and
+/// whether sine and cosine swap.
+///
+/// # Safety
+/// `|y| < 120` (not NaN): `y · 2/π · 2^24` then fits an `i32`, which its unchecked
+/// truncation needs (a checked cast would not vectorise).
+#[cfg(target_feature = "fma")]
+#[inline(always)]
+unsafe fn sin_cos_libm_one(y: f32) -> (f32, f32) {
+    use glibc_sincosf::{C, HPI, HPI_INV, S};
+    let top = (y.to_bits() >> 20) & 0x7ff;
+    let x = y as f64;
+    let reduce = top > 0x3f3;
+    // SAFETY: `|x| < 120`, so `|x 2/π 2^24| < 2^31` (the caller's contract); the
+    // truncation is then `cvttsd2si`'s, as libm's.
+    let n = if reduce {
+        unsafe { (x * HPI_INV).to_int_unchecked::<i32>() }.wrapping_add(0x80_0000) >> 24
+    } else {
+        0
+    };
+    let xr = if reduce {
+        (-(n as f64)).mul_add(HPI, x)
+    } else {
+        x
+    };
+    let sign = if (n + 1) & 2 != 0 { -1.0 } else { 1.0 };
+    let neg = if n & 2 != 0 { -1.0 } else { 1.0 };
+    let xs = xr * sign;
+    let x2 = xr * xr;
+    let x3 = x2 * xs;
+    let x4 = x2 * x2;
+    let x5 = x2 * x3;
+    let x6 = x2 * x4;
+    let s13 = x2.mul_add(S[2], S[1]);
+    let c34 = x2.mul_add(neg * C[4], neg * C[3]);
+    let c01 = x2.mul_add(neg * C[1], neg * C[0]);
+    let s = x5.mul_add(s13, x3.mul_add(S[0], xs)) as f32;
+    let c = x6.mul_add(c34, x4.mul_add(neg * C[2], c01)) as f32;
+    let (s, c) = if n & 1 != 0 { (c, s) } else { (s, c) };
+    if top <= 0x397 { (y, 1.0) } else { (s, c) }
+}
+
+/// `(sin y, cos y)` per lane, bit for bit what libm's `sincosf` (`f32::sin`,
+/// `f32::cos`, which the compiler merges into one `sincosf` call) returns here: with
+/// FMA, [`sin_cos_libm_one`] in lanes for arguments `|y| < 120` (any other lane sends
+/// the whole call to libm); without FMA, libm lane by lane.
+///
+/// Why (issue 12, pk26): the diffuse rays of `bench` need `cos 2πu` and `sin 2πu` per
+/// ray, and libm's call per lane was 6.1 % of a bunny diffuse pass (`perf record` of
+/// `examples/stream_profile bunny.obj bvh8-stream diffuse 40`, AVX-512), about 10 ns
+/// a ray. The rays must stay the scalar protocol's bit for bit (the checksums are
+/// compared with every earlier run); the test holds this to libm over every argument
+/// `2π · k 2^-24` the protocol makes (`k < 2^24`) and a sweep of `[-120, 120]`.
+#[inline(always)]
+pub fn sin_cos_libm16(y: &[f32; 16]) -> ([f32; 16], [f32; 16]) {
+    let (mut s, mut c) = ([0.0f32; 16], [0.0f32; 16]);
+    // Every lane checked (no early exit, so the check stays in lanes too).
+    #[cfg(target_feature = "fma")]
+    if y.iter().fold(true, |all, v| all & (v.abs() < 120.0)) {
+        for k in 0..16 {
+            // SAFETY: every lane is below 120 in magnitude (and not NaN).
+            (s[k], c[k]) = unsafe { sin_cos_libm_one(y[k]) };
+        }
+        return (s, c);
+    }
+    for k in 0..16 {
+        (s[k], c[k]) = (y[k].sin(), y[k].cos());
+    }
+    (s, c)
+}
+
+#[cfg(test)]
+mod sin_cos_libm_tests {
+    use super::*;
+    use std::hint::black_box;
+
+    /// `sin_cos_libm16` of sixteen arguments against libm's `sin` and `cos` of each,
+    /// bit for bit; returns how many lanes took the lane path's reduction (`|y| >= 0.75`).
+    fn check(y: &[f32; 16]) -> usize {
+        let (s, c) = sin_cos_libm16(y);
+        for k in 0..16 {
+            let v = black_box(y[k]);
+            let (ws, wc) = (v.sin(), v.cos());
+            assert_eq!(
+                (s[k].to_bits(), c[k].to_bits()),
+                (ws.to_bits(), wc.to_bits()),
+                "y = {:e} ({:#x}): lanes ({:e}, {:e}), libm ({ws:e}, {wc:e})",
+                y[k],
+                y[k].to_bits(),
+                s[k],
+                c[k]
+            );
+        }
+        y.iter().filter(|v| v.abs() >= 0.75).count()
+    }
+
+    /// Every argument the bench's diffuse rays make, `(2π as f32) · k 2^-24` for `k <
+    /// 2^24` (the top 24 bits of a draw), and a sweep of the whole fast range `|y| <
+    /// 120` in both signs (every 61st bit pattern, so every exponent and the bounds
+    /// between the tiny, polynomial and reduced paths), with the bounds themselves,
+    /// zeros, subnormals and arguments outside the range (libm's own path): the same bits
+    /// as libm.
+    #[test]
+    fn lanes_are_libm_bit_for_bit() {
+        let two_pi = (2.0 * std::f64::consts::PI) as f32;
+        let mut y = [0.0f32; 16];
+        let mut reduced = 0;
+        for k in 0..1u32 << 24 {
+            y[(k % 16) as usize] = two_pi * (k as f32 * (1.0 / 16_777_216.0));
+            if k % 16 == 15 {
+                reduced += check(&y);
+            }
+        }
+        let top = 120.0f32.to_bits();
+        let mut i = 0;
+        for bits in (0..top).step_by(61).chain([top - 1, top, top + 1]) {
+            for v in [f32::from_bits(bits), -f32::from_bits(bits)] {
+                y[i % 16] = v;
+                i += 1;
+                if i % 16 == 0 {
+                    reduced += check(&y);
+                }
+            }
+        }
+        let specials = [
+            0.0,
+            -0.0,
+            f32::MIN_POSITIVE,
+            1e-40,
+            -1e-40,
+            f32::from_bits(0x3980_0000),
+            f32::from_bits(0x397f_ffff),
+            f32::from_bits(0x3f40_0000),
+            f32::from_bits(0x3f3f_ffff),
+            std::f32::consts::FRAC_PI_4,
+            std::f32::consts::PI,
+            -119.99999,
+            119.99999,
+            1e30,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        check(&specials);
+        // Sixteen in range (the lane path) with the same edge values.
+        let mut in_range = specials;
+        in_range[13..].copy_from_slice(&[2.5, -3.75, 100.0]);
+        check(&in_range);
+        assert!(reduced > 10_000_000, "{reduced} lanes took the reduction");
+    }
+}
+
 #[cfg(test)]
 mod tri_group_tests {
     use super::*;

@@ -313,6 +313,24 @@ where
         });
     }
 
+    /// [`closest_stream`](Self::closest_stream)'s answers as lanes: ray `k`'s distance
+    /// and primitive in `t[k]` and `prim[k]`, NaN and `u32::MAX` where it has none
+    /// (see `Accel::closest_hit_stream_lanes`).
+    pub fn closest_stream_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
+        let n = rays.len();
+        assert!(t.len() >= n && prim.len() >= n, "one answer per ray");
+        SCRATCH.with_borrow_mut(|s| {
+            self.stream::<false>(s, rays);
+            t[..n].fill(f32::NAN);
+            prim[..n].fill(u32::MAX);
+            for (&i, h) in s.index.iter().zip(&s.best) {
+                if let Some(h) = h {
+                    (t[i as usize], prim[i as usize]) = (h.t, h.prim);
+                }
+            }
+        });
+    }
+
     /// Occlusion of a batch of rays by stream traversal; the same answers as
     /// [`any_single`](Self::any_single) for each ray.
     pub fn any_stream(&self, rays: &[Ray], out: &mut [bool]) {
@@ -688,9 +706,19 @@ mod tests {
             let mut occluded = vec![true; len];
             bvh.closest_stream(batch, &mut closest);
             bvh.any_stream(batch, &mut occluded);
+            // The answers as lanes, into buffers longer than the batch holding junk.
+            let (mut t, mut prim) = (vec![-7.0f32; len + 3], vec![7u32; len + 3]);
+            bvh.closest_stream_lanes(batch, &mut t, &mut prim);
             for (i, r) in batch.iter().enumerate() {
                 let single = bvh.closest_single(r);
                 assert_eq!(closest[i], single, "batch {len}, ray {i}");
+                let lanes =
+                    single.map_or((f32::NAN.to_bits(), u32::MAX), |h| (h.t.to_bits(), h.prim));
+                assert_eq!(
+                    (t[i].to_bits(), prim[i]),
+                    lanes,
+                    "lanes: batch {len}, ray {i}"
+                );
                 assert_eq!(occluded[i], bvh.any_single(r), "batch {len}, ray {i}");
                 hits_seen += single.is_some() as usize;
             }

@@ -382,6 +382,10 @@ where
         self.closest_stream(rays, out);
     }
 
+    fn closest_hit_stream_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
+        self.closest_stream_lanes(rays, t, prim);
+    }
+
     fn any_hit_stream(&self, rays: &[Ray], out: &mut [bool]) {
         self.any_stream(rays, out);
     }
