@@ -10,6 +10,7 @@ use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
 use crate::accel::sah_build::build_tree_keeping_refs;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, PacketHitLanes, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
+use crate::pages::advise_huge_capacity;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
@@ -130,6 +131,8 @@ where
             nodes: Vec::with_capacity(n / 2 + 1),
             groups: Vec::new(),
         };
+        // The node array in huge pages where it is fresh (`pages::advise_huge_capacity`).
+        advise_huge_capacity(&mut c.nodes);
         // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
         // node and group arrays before the collapse writes them, as Embree's allocator
         // does (`os_advise`); this host's transparent_hugepage is `madvise`, so a 10^6
