@@ -98,34 +98,6 @@ pub(crate) fn advise_huge_pages(ptr: *mut u8, len: usize) {
     let _ = (ptr, len);
 }
 
-/// [`advise_huge_pages`] over the whole capacity of `v`, before it is written: for a
-/// large array that is filled once (the BVH's nodes and triangle groups, `Bvh::build`).
-/// Pages already mapped (a block recycled from the heap) keep their 4 KiB pages.
-///
-/// Why (issue 12, session 26; pk26's finding): Embree's allocator advises its BVH's
-/// memory (`os_malloc`, `MADV_HUGEPAGE`); its 10^6 process holds 62 MiB of huge pages
-/// and ours held none, and Embree without them (`PR_SET_THP_DISABLE`) lost 16-17 % at
-/// 10^6 primary and 11-14 % diffuse. Measured here (`examples/build_time 1000000 3 T`,
-/// `examples/stream_profile /tmp/m1e6.obj MODE WORKLOAD 5`, AVX-512, 3 interleaved
-/// rounds, load 1.2-1.4, medians): build ms 1 thread 379/383/354 without, 377/352/356
-/// with; 2 threads 195/216/192 against 192/180/212; bvh8-packet primary 25.97/22.29/
-/// 22.39 against 23.09/26.20/24.42 Mrays/s, bvh8-stream diffuse 3.93/3.84/3.93 against
-/// 4.11/4.03/3.90. The process then holds 20 MiB of huge pages (the node array; the
-/// groups came from recycled heap memory). Also tried: `madvise(MADV_COLLAPSE)` of
-/// both arrays after the build (the kernel copies written 4 KiB pages into huge pages:
-/// 5.4 ms for the nodes' 18 MiB, 9.8 ms for the groups' 38 MiB): primary 24.15/26.56/
-/// 26.63/27.68 without, 27.03/27.60/27.73/28.44 with (4 rounds), but the build at 2
-/// threads 180-189 -> 203-239 ms (the copy is serial per range and every build pays
-/// it), which the build target against Embree's (238-258 ms) cannot spare. Earlier
-/// advice of the tree's arrays (pk17, big19; comments in `accel/bvhn/tree.rs` and
-/// `collapse.rs`) was measured at load 4-7 without a clear win either way.
-pub(crate) fn advise_huge_capacity<T>(v: &mut Vec<T>) {
-    advise_huge_pages(
-        v.as_mut_ptr().cast(),
-        v.capacity() * std::mem::size_of::<T>(),
-    );
-}
-
 /// The `VmFlags` of the mapping that holds `addr` (`/proc/self/smaps`), for tests.
 #[cfg(all(test, target_os = "linux"))]
 pub(crate) fn vm_flags_at(addr: usize) -> Option<Vec<String>> {
@@ -167,15 +139,6 @@ mod tests {
         assert!(
             !flags.iter().any(|f| f == "hg"),
             "small array advised: {flags:?}"
-        );
-        // A vector's whole capacity, before anything is written to it.
-        let mut v: Vec<u64> = Vec::with_capacity((9 << 20) / 8);
-        advise_huge_capacity(&mut v);
-        let inner = (v.as_ptr() as usize).next_multiple_of(HUGE);
-        let flags = vm_flags_at(inner).expect("the vector's mapping in smaps");
-        assert!(
-            flags.iter().any(|f| f == "hg"),
-            "capacity not advised: {flags:?}"
         );
     }
 }

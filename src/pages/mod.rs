@@ -6,5 +6,5 @@ mod populate;
 
 #[cfg(all(test, target_os = "linux"))]
 pub(crate) use huge::vm_flags_at;
-pub(crate) use huge::{ALWAYS_MAPPED_BYTES, advise_huge_capacity, advise_huge_pages};
+pub(crate) use huge::{ALWAYS_MAPPED_BYTES, advise_huge_pages};
 pub(crate) use populate::populate_for_writing;

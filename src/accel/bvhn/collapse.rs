@@ -5,7 +5,6 @@
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
 use crate::accel::sah_build::{BuildNode, SpareRefs};
-use crate::pages::advise_huge_capacity;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use rayon::prelude::*;
@@ -158,11 +157,7 @@ impl<const N: usize> Collapse<'_, N> {
             self.groups = spare.into_vec(gb - group_start);
         }
         self.nodes.reserve(nb - node_start);
-        let fresh = self.groups.capacity() == 0;
         self.groups.reserve(gb - group_start);
-        if fresh {
-            advise_huge_capacity(&mut self.groups);
-        }
         // Every item's ranges of the arrays' spare room, split off in layout order:
         // the top nodes written here, the tasks' ranges handed to them.
         let mut node_room = &mut self.nodes.spare_capacity_mut()[..nb - node_start];
@@ -227,11 +222,7 @@ impl<const N: usize> Collapse<'_, N> {
         {
             self.groups = spare.into_vec(blocks);
         }
-        let fresh = self.groups.capacity() == 0;
         self.groups.reserve(blocks);
-        if fresh {
-            advise_huge_capacity(&mut self.groups);
-        }
         // Tried, no measurable win, reverted (issue 12, big21, 2026-11-28, commit a8aec4c
         // on branch big21): the groups array made to start on a cache line. A group is
         // 160 bytes aligned to 16, and this array (a large `malloc` block, or the build's

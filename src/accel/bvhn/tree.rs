@@ -10,7 +10,6 @@ use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
 use crate::accel::sah_build::build_tree_keeping_refs;
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, PacketHitLanes, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
-use crate::pages::advise_huge_capacity;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
@@ -131,8 +130,6 @@ where
             nodes: Vec::with_capacity(n / 2 + 1),
             groups: Vec::new(),
         };
-        // The node array in huge pages where it is fresh (`pages::advise_huge_capacity`).
-        advise_huge_capacity(&mut c.nodes);
         // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
         // node and group arrays before the collapse writes them, as Embree's allocator
         // does (`os_advise`); this host's transparent_hugepage is `madvise`, so a 10^6
@@ -142,6 +139,22 @@ where
         // without packet prefetch against 11.88 / 15.38 / 11.44 / 13.19 / 12.99 without
         // the advice, and 15.18 / 15.12 with prefetch against 14.44 / 14.65. The
         // first-load stalls are latency, which the packet prefetch hides, not the TLB.
+        // Tried, level, reverted (issue 12, session 26, commit 83897f4): the node array
+        // and a fresh groups array advised for huge pages before the collapse writes
+        // them (`pages::advise_huge_pages` over the capacity). pk26 had found Embree's
+        // 10^6 process holding 62 MiB of huge pages and ours none, and Embree without
+        // them (`PR_SET_THP_DISABLE`) 16-17 % slower at 10^6 primary. With the advice
+        // our process held 20 MiB (the nodes; the groups came from recycled heap
+        // memory). `stream_profile /tmp/m1e6.obj bvh8-packet primary 5` against the
+        // session's base, 4 interleaved rounds, load 1.1-1.3, Mrays/s medians: base
+        // 28.64/26.26/24.29/24.75, advised 25.82/26.40/26.22/25.61 (earlier 3 rounds
+        // 25.97/22.29/22.39 against 23.09/26.20/24.42); `build_time 1000000 5 2` 174.8/
+        // 179.9 against 192.9/193.6 ms, 1 thread 337.5 against 315.9. And
+        // `madvise(MADV_COLLAPSE)` of both arrays after the build (the kernel copies the
+        // written pages into huge pages; 5.4 ms for the nodes' 18 MiB, 9.8 ms for the
+        // groups' 38 MiB, 1 thread): primary 24.15/26.56/26.63/27.68 without against
+        // 27.03/27.60/27.73/28.44 with (4 rounds), but 2-thread builds 180-189 -> 203-239
+        // ms, which the build target against Embree's (220-258 ms) cannot spare.
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
