@@ -29,6 +29,15 @@ impl PacketHitLanes {
     }
 }
 
+/// Closest hits written as lanes: hit `k`'s distance and primitive in `t[k]` and
+/// `prim[k]`, NaN and `u32::MAX` where there is none (the lane form of
+/// [`Accel::closest_hit_stream_lanes`] for structures without one of their own).
+pub fn hits_as_lanes(hits: &[Option<Hit>], t: &mut [f32], prim: &mut [u32]) {
+    for ((h, t), p) in hits.iter().zip(t.iter_mut()).zip(prim.iter_mut()) {
+        (*t, *p) = h.map_or((f32::NAN, u32::MAX), |h| (h.t, h.prim));
+    }
+}
+
 /// Closest-hit and any-hit queries over one primitive set.
 ///
 /// Interval semantics for every implementation: a hit counts only if `tmin < t < tmax`
@@ -80,9 +89,7 @@ pub trait Accel: Send + Sync {
     fn closest_hit_stream_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
         let mut hits = vec![None; rays.len()];
         self.closest_hit_stream(rays, &mut hits);
-        for ((h, t), p) in hits.iter().zip(t.iter_mut()).zip(prim.iter_mut()) {
-            (*t, *p) = h.map_or((f32::NAN, u32::MAX), |h| (h.t, h.prim));
-        }
+        hits_as_lanes(&hits, t, prim);
     }
 
     /// Occlusion for a large batch of rays traced as one stream.

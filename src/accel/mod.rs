@@ -35,7 +35,7 @@ pub use bvhn::{
 pub use filter::{Candidate, HitFilter, QueryOptions, all_hits};
 pub use grid::{Grid, GridOptions};
 pub use instance::InstanceAccel;
-pub use interface::{Accel, AccelInfo, PacketHitLanes};
+pub use interface::{Accel, AccelInfo, PacketHitLanes, hits_as_lanes};
 pub use kdtree::{KdNode, KdTree, KdTreeOptions};
 pub use kind::AccelKind;
 pub use moving::{MovingAccel, MovingSpheres, MovingTriangles};

@@ -3,6 +3,7 @@
 
 use crate::accel::{
     Accel, AccelKind, Bvh, BvhNode, NodeWidth, Prefetch, QNode, Triangles, WideNode, Width,
+    hits_as_lanes,
 };
 use crate::geometry::{Hit, Ray, RayPacket};
 
@@ -46,9 +47,7 @@ pub trait TraceMode: Send + Sync {
     fn closest_lanes(&self, rays: &[Ray], t: &mut [f32], prim: &mut [u32]) {
         let mut hits = vec![None; rays.len()];
         self.closest(rays, &mut hits);
-        for ((h, t), p) in hits.iter().zip(t.iter_mut()).zip(prim.iter_mut()) {
-            (*t, *p) = h.map_or((f32::NAN, u32::MAX), |h| (h.t, h.prim));
-        }
+        hits_as_lanes(&hits, t, prim);
     }
     /// Whether the mode takes a whole band's rays as one batch (stream modes, as
     /// Embree's `rtcIntersect1M`), instead of one tile's at a time.
