@@ -120,22 +120,51 @@ pub(crate) fn vm_flags_at(addr: usize) -> Option<Vec<String>> {
 mod tests {
     use super::*;
 
+    /// A fresh anonymous mapping of `len` bytes of its own (unmapped on drop): a heap
+    /// block may share a mapping that another test advised earlier, whose `hg` flag
+    /// outlives the block.
+    struct Mapping(*mut u8, usize);
+
+    impl Mapping {
+        fn new(len: usize) -> Mapping {
+            // SAFETY: a private anonymous mapping at an address of the kernel's choice.
+            let p = unsafe {
+                libc::mmap(
+                    std::ptr::null_mut(),
+                    len,
+                    libc::PROT_READ | libc::PROT_WRITE,
+                    libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
+                    -1,
+                    0,
+                )
+            };
+            assert_ne!(p, libc::MAP_FAILED, "mmap of {len} bytes");
+            Mapping(p.cast(), len)
+        }
+    }
+
+    impl Drop for Mapping {
+        fn drop(&mut self) {
+            // SAFETY: the mapping made in `new`, unmapped once.
+            unsafe { libc::munmap(self.0.cast(), self.1) };
+        }
+    }
+
     /// A large array's whole 2 MiB pages are advised (`hg` in the mapping's flags); an
     /// array under 4 MiB is left alone.
     #[test]
     fn large_arrays_are_advised_small_ones_are_not() {
         const HUGE: usize = 2 << 20;
-        let mut large = vec![0u8; 9 << 20];
-        let mut small = vec![0u8; 3 << 20];
-        advise_huge_pages(large.as_mut_ptr(), large.len());
-        advise_huge_pages(small.as_mut_ptr(), small.len());
-        let inner = (large.as_ptr() as usize).next_multiple_of(HUGE);
+        let (large, small) = (Mapping::new(9 << 20), Mapping::new(3 << 20));
+        advise_huge_pages(large.0, large.1);
+        advise_huge_pages(small.0, small.1);
+        let inner = (large.0 as usize).next_multiple_of(HUGE);
         let flags = vm_flags_at(inner).expect("the large array's mapping in smaps");
         assert!(
             flags.iter().any(|f| f == "hg"),
             "large array not advised: {flags:?}"
         );
-        let flags = vm_flags_at(small.as_ptr() as usize + (1 << 20)).expect("small mapping");
+        let flags = vm_flags_at(small.0 as usize + (1 << 20)).expect("small mapping");
         assert!(
             !flags.iter().any(|f| f == "hg"),
             "small array advised: {flags:?}"
