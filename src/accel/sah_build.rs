@@ -293,6 +293,9 @@ struct Builder {
     /// Nodes of at least this many references choose their split from a sample
     /// ([`Bins::add_sampled`]; [`SAMPLED_BINNING`] in a build, `usize::MAX` for none).
     sample_from: usize,
+    /// Nodes of at least this many references partition in parallel
+    /// ([`partition_parallel`]).
+    parallel_from: usize,
 }
 
 /// Most bins per axis the builder supports (a power of two: see [`Bins::add`]).
@@ -668,10 +671,36 @@ fn build_tree_sampling<P: Primitives>(
         opts,
         block_shift: bs.is_power_of_two().then(|| bs.trailing_zeros()),
         sample_from: sample_from.max(opts.max_leaf + 1),
+        parallel_from: parallel_partition_from(n),
     };
     let nb = node_bounds(&refs);
     let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb, true);
     (Some(root), ids, SpareRefs(refs))
+}
+
+/// The smallest node that partitions in parallel in a build over `n` references: one
+/// that holds at least a thread's share of them (at 2 threads the root, and a child
+/// only of a split more uneven than half and half), and never one below
+/// [`PARALLEL_NODE`]. Below that share the subtrees already keep every thread busy
+/// (`rayon::join` in [`Builder::build`]), and the parallel partition's count pass
+/// reads every reference once more: at 10^7 triangles and 2 threads that pass
+/// (`count_on_axis`) was 12.5 % of a build's samples (`perf record -e cpu-clock` of
+/// `examples/build_time 10000000 3 2`), against 19.9 % for the writes.
+///
+/// Measured (issue 12, session 27, AVX-512, 2 threads, the share switched by an
+/// environment variable in one binary, interleaved rounds): `build_time 10000000 3 2`,
+/// CPU ms medians 3,942 / 3,929 with a parallel partition at every node of
+/// [`PARALLEL_NODE`] and more, against 3,502 / 3,541 with this share (and 3,565 / 3,683
+/// with half a share); wall 1,803 ms (2.77 Mtriangles/s per thread) in the round where
+/// the build had both cores (the other round shared one core with a compile), against
+/// 2,038 ms (2.45 per thread) for `build_time 10000000 5 2` at 14:01. `build_time 1000000 7 2`, 3 rounds: wall medians 174.8 / 173.4 / 182.2
+/// against 163.3 / 168.7 / 163.7 ms. `build_time 100000 15 2`: level (12.6-13.1 ms
+/// either way). The same trees: the serial and the parallel partition write the same
+/// order (`parallel_partition_matches_the_serial_one`). Session 24 had tried the root alone at
+/// 2 threads and measured it level at 10^6 (wall 187.6-204.2 against 192.5-197.8 ms, a
+/// noisier window); the count pass grows with the levels a build has above the share.
+fn parallel_partition_from(n: usize) -> usize {
+    (n / rayon::current_num_threads()).max(PARALLEL_NODE)
 }
 
 /// `n` zeroed references, allocated without being written (`calloc`: fresh pages from
@@ -817,7 +846,7 @@ impl Builder {
             if n <= self.opts.max_leaf && leaf_cost <= c.split.cost {
                 return leaf(refs);
             }
-            let (m, lc, rc) = partition(refs, scratch, &nb.centroids, c.split);
+            let (m, lc, rc) = partition(refs, scratch, &nb.centroids, c.split, self.parallel_from);
             if m > 0 && m < n {
                 let left = NodeBounds {
                     bounds: c.left,
@@ -1299,11 +1328,13 @@ fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, 
 /// Returns the left count and the centroid bounds.
 ///
 /// Serial: [`partition_kernel`] over the whole node. In parallel (nodes of at least
-/// [`PARALLEL_NODE`] with more than one thread): chunks count their sides first, then
+/// `parallel_from`, [`parallel_partition_from`] in a build, and of [`PARALLEL_NODE`],
+/// with more than one thread): chunks count their sides first, then
 /// each writes its part of both sides with the same kernel, to the same places the
 /// serial loop would.
 ///
-/// Tried, no change (issue 12, session 24): the parallel partition only where the levels
+/// Tried in session 24 and measured level at 10^6 then; taken in session 27 in another
+/// form, measured at 10^7 ([`parallel_partition_from`]): the parallel partition only where the levels
 /// above leave threads idle (`1 << depth < threads`: at 2 threads the root alone), on
 /// the guess that its two passes (count, then write) double the work where as many
 /// subtrees as threads are built at once. Same trees; `build_time 1000000 7 2`, 3
@@ -1319,7 +1350,13 @@ fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, 
 /// each reference twice (to the next left and the next right slot), indexed the
 /// centroid by a run-time axis (through the stack) and kept its bounds and cursor on
 /// the stack; it was the largest single cost of the build (a third of its samples).
-fn partition(src: &[PrimRef], dst: &mut [PrimRef], cb: &BBox, s: Split) -> (usize, BBox, BBox) {
+fn partition(
+    src: &[PrimRef],
+    dst: &mut [PrimRef],
+    cb: &BBox,
+    s: Split,
+    parallel_from: usize,
+) -> (usize, BBox, BBox) {
     assert_eq!(
         src.len(),
         dst.len(),
@@ -1327,7 +1364,7 @@ fn partition(src: &[PrimRef], dst: &mut [PrimRef], cb: &BBox, s: Split) -> (usiz
     );
     let scale = bin_scale(cb, s.bins);
     let n = src.len();
-    if n >= PARALLEL_NODE && rayon::current_num_threads() > 1 {
+    if n >= parallel_from.max(PARALLEL_NODE) && rayon::current_num_threads() > 1 {
         return partition_parallel(src, dst, cb.min, scale, s);
     }
     let p = Plane::new(cb.min, scale, s);
@@ -1462,7 +1499,8 @@ mod tests {
             .num_threads(1)
             .build()
             .unwrap();
-        let (m1, l1, r1) = pool.install(|| partition(&src, &mut serial, &nb.centroids, s));
+        let (m1, l1, r1) =
+            pool.install(|| partition(&src, &mut serial, &nb.centroids, s, PARALLEL_NODE));
         let mut parallel = src.clone();
         let (m2, l2, r2) = partition_parallel(&src, &mut parallel, nb.centroids.min, scale, s);
         assert!(m1 > 1000 && m1 < src.len() - 1000, "a real split: {m1}");
@@ -1542,7 +1580,7 @@ mod tests {
                     bins: bins_n,
                     cost: 0.0,
                 };
-                let (m, lc, rc) = partition(&src, &mut dst, &nb.centroids, s);
+                let (m, lc, rc) = partition(&src, &mut dst, &nb.centroids, s, PARALLEL_NODE);
                 for r in &src {
                     let k = bins_of(r.centroid(), nb.centroids.min, scale, bins_n);
                     assert_eq!(goes_left(r, nb.centroids.min, scale, s), k[axis] < bin);
@@ -1573,10 +1611,11 @@ mod tests {
             opts: Bvh2BuildOptions::default(),
             block_shift: Some(0),
             sample_from: usize::MAX,
+            parallel_from: PARALLEL_NODE,
         };
         let c = builder.best_split(&src, &nb).expect("a split");
         let mut dst = src.clone();
-        let (m, _, _) = partition(&src, &mut dst, &nb.centroids, c.split);
+        let (m, _, _) = partition(&src, &mut dst, &nb.centroids, c.split, PARALLEL_NODE);
         assert!(m > 0 && m < src.len());
         assert_eq!(box_bits(&c.left), box_bits(&node_bounds(&dst[..m]).bounds));
         assert_eq!(box_bits(&c.right), box_bits(&node_bounds(&dst[m..]).bounds));
@@ -1620,7 +1659,7 @@ mod tests {
                 let mut want: Vec<PrimRef> = src.iter().filter(|r| left_of(r)).copied().collect();
                 let m = want.len();
                 want.extend(src.iter().rev().filter(|r| !left_of(r)).copied());
-                let (got_m, lc, rc) = partition(&src, &mut dst, &nb.centroids, s);
+                let (got_m, lc, rc) = partition(&src, &mut dst, &nb.centroids, s, PARALLEL_NODE);
                 assert_eq!(got_m, m, "axis {axis} bin {bin}");
                 assert_eq!(bits(&dst), bits(&want), "axis {axis} bin {bin}");
                 let cb = |r: &[PrimRef]| {
@@ -1778,6 +1817,7 @@ mod tests {
                 },
                 block_shift: Some(bs.trailing_zeros()),
                 sample_from: usize::MAX,
+                parallel_from: PARALLEL_NODE,
             };
             for refs in &nodes {
                 let nb = node_bounds(refs);
@@ -1921,11 +1961,11 @@ mod tests {
         }
     }
 
-    /// The parallel build (nodes of at least [`PARALLEL_NODE`] references sampled and
-    /// partitioned in parallel chunks, subtrees on two threads) builds the 1-thread
-    /// build's tree, node for node, with the same primitive order, on the procedural
-    /// mesh and on a soup of random triangles, for the BVH2's and the BVH8's options;
-    /// the BVH8 built over each at both thread counts validates.
+    /// The parallel build (nodes of at least [`PARALLEL_NODE`] references sampled, those
+    /// of a thread's share partitioned in parallel chunks, subtrees on two and four
+    /// threads) builds the 1-thread build's tree, node for node, with the same primitive
+    /// order, on the procedural mesh and on a soup of random triangles, for the BVH2's
+    /// and the BVH8's options; the BVH8 built over each at every thread count validates.
     #[test]
     fn two_threads_build_the_one_thread_tree() {
         let mut x = 0x1234_5678_u32;
@@ -1949,7 +1989,9 @@ mod tests {
             crate::bench::BenchMesh::procedural(60_000).triangles,
             crate::accel::Triangles::from_corners(&soup),
         ];
-        let pools = [1, 2].map(|t| {
+        // 4 threads: nodes down to a quarter of the references partition in parallel
+        // (`parallel_partition_from`), at 2 threads only those of at least half.
+        let pools = [1, 2, 4].map(|t| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(t)
                 .build()
@@ -1965,12 +2007,14 @@ mod tests {
                     ..Bvh2BuildOptions::default()
                 },
             ] {
-                let [(one, one_ids), (two, two_ids)] = pools
+                let [(one, one_ids), more @ ..] = pools
                     .each_ref()
                     .map(|p| p.install(|| build_tree(tris, opts)));
-                let nodes = same_tree(one.as_ref().unwrap(), two.as_ref().unwrap());
-                assert!(nodes > tris.v0.len() / 4, "{nodes} nodes");
-                assert_eq!(one_ids, two_ids);
+                for (tree, ids) in &more {
+                    let nodes = same_tree(one.as_ref().unwrap(), tree.as_ref().unwrap());
+                    assert!(nodes > tris.v0.len() / 4, "{nodes} nodes");
+                    assert_eq!(&one_ids, ids);
+                }
             }
             for p in &pools {
                 let bvh = p.install(|| crate::accel::Bvh8::build(tris.clone()));
@@ -2084,11 +2128,13 @@ mod tests {
                 opts,
                 block_shift: Some(bs.trailing_zeros()),
                 sample_from: usize::MAX,
+                parallel_from: PARALLEL_NODE,
             };
             let divided = Builder {
                 opts,
                 block_shift: None,
                 sample_from: usize::MAX,
+                parallel_from: PARALLEL_NODE,
             };
             for n in 0..100u32 {
                 assert_eq!(shifted.blocks(n), divided.blocks(n));
