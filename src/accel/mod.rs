@@ -6,6 +6,7 @@
 //! scene actually has, so a scene without spheres never runs a sphere kernel.
 
 mod bruteforce;
+mod build_arena;
 mod bvh2;
 mod bvhn;
 mod extras;

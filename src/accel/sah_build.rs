@@ -96,6 +96,7 @@
 
 use super::Bvh2BuildOptions;
 use super::Primitives;
+use super::build_arena::{Arena, ArenaRef, Cursor};
 use crate::geometry::Aabb;
 use crate::pages::{ALWAYS_MAPPED_BYTES, advise_huge_pages};
 use crate::simd::bin_box::BinBox;
@@ -224,10 +225,10 @@ impl PrimRef {
 /// straight into a BVH4/8.
 ///
 /// Leaf ranges are `u32` (the builder holds fewer than 2^32 primitives): a node is
-/// then 48 bytes (64 with `usize` ranges), and an interior node's child pair a 96-byte
-/// heap block (112 with glibc's header) instead of 128 (144). At 10^7 triangles the
-/// build makes 2.6 million pairs, in heap pages that are fresh in every build (glibc
-/// trims the freed heap's top). Issue 12, helper bld23, 2026-11-29: peak RSS of
+/// then 48 bytes (64 with `usize` ranges), and an interior node's child pair 96 bytes
+/// (a heap block of 112 with glibc's header until the pairs moved into one arena,
+/// `accel::build_arena`) instead of 128 (144). At 10^7 triangles the build makes 2.6
+/// million pairs. Issue 12, helper bld23, 2026-11-29: peak RSS of
 /// `build_time 10000000 2 1` 185 -> 177 bytes per triangle, of `build_time 100000 9
 /// 1` 500 -> 406; CPU ms per 10^7 build (medians of 2, interleaved with the build
 /// before, load 4.8-8.8 with compiles running) 6,651 / 5,467 / 5,221 before against
@@ -240,8 +241,25 @@ pub(super) enum BuildNode {
     },
     Interior {
         bounds: BBox,
-        children: Box<[BuildNode; 2]>,
+        /// In the build's [`Arena`] (was a `Box` each: see `accel::build_arena`).
+        children: ArenaRef<[BuildNode; 2]>,
     },
+}
+
+/// A finished build tree: its root and the arena holding every interior node's child
+/// pair, freed together. Read through `Deref` as its root [`BuildNode`]; the nodes can
+/// only be borrowed from it, so no node outlives the pairs it points to.
+pub(super) struct BuildTree {
+    root: BuildNode,
+    _pairs: Arena<[BuildNode; 2]>,
+}
+
+impl std::ops::Deref for BuildTree {
+    type Target = BuildNode;
+
+    fn deref(&self) -> &BuildNode {
+        &self.root
+    }
 }
 
 const _: () = assert!(std::mem::size_of::<BuildNode>() == 48);
@@ -263,25 +281,6 @@ impl BuildNode {
             BuildNode::Leaf { bounds, .. } | BuildNode::Interior { bounds, .. } => *bounds,
         }
     }
-
-    /// Frees the tree, the subtrees below its top `levels` levels as separate rayon
-    /// tasks (the same frees, spread over the pool's threads).
-    ///
-    /// Why (issue 12, helper bd25, 2026-11-29): the recursive drop of a 10^6 build's
-    /// tree (524k boxed child pairs) took 10-12 ms on one thread at the end of every
-    /// build (phase timers, `build_time 1000000 5 2`, load ~3).
-    pub(super) fn drop_in_parallel(self, levels: usize) {
-        if levels == 0 {
-            return;
-        }
-        if let BuildNode::Interior { children, .. } = self {
-            let [l, r] = *children;
-            rayon::join(
-                || l.drop_in_parallel(levels - 1),
-                || r.drop_in_parallel(levels - 1),
-            );
-        }
-    }
 }
 
 struct Builder {
@@ -296,6 +295,8 @@ struct Builder {
     /// Nodes of at least this many references partition in parallel
     /// ([`partition_parallel`]).
     parallel_from: usize,
+    /// The interior nodes' child pairs.
+    pairs: Arena<[BuildNode; 2]>,
 }
 
 /// Most bins per axis the builder supports (a power of two: see [`Bins::add`]).
@@ -547,7 +548,7 @@ impl NodeBounds {
 pub(super) fn build_tree<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
-) -> (Option<BuildNode>, Vec<u32>) {
+) -> (Option<BuildTree>, Vec<u32>) {
     let (tree, ids, _) = build_tree_sampling(prims, opts, SAMPLED_BINNING);
     (tree, ids)
 }
@@ -557,7 +558,7 @@ pub(super) fn build_tree<P: Primitives>(
 pub(super) fn build_tree_keeping_refs<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
-) -> (Option<BuildNode>, Vec<u32>, SpareRefs) {
+) -> (Option<BuildTree>, Vec<u32>, SpareRefs) {
     build_tree_sampling(prims, opts, SAMPLED_BINNING)
 }
 
@@ -632,7 +633,7 @@ fn build_tree_sampling<P: Primitives>(
     prims: &P,
     opts: Bvh2BuildOptions,
     sample_from: usize,
-) -> (Option<BuildNode>, Vec<u32>, SpareRefs) {
+) -> (Option<BuildTree>, Vec<u32>, SpareRefs) {
     assert!(
         opts.bins >= 2 && opts.bins <= MAX_BINS,
         "bins must be in 2..={MAX_BINS}"
@@ -672,10 +673,26 @@ fn build_tree_sampling<P: Primitives>(
         block_shift: bs.is_power_of_two().then(|| bs.trailing_zeros()),
         sample_from: sample_from.max(opts.max_leaf + 1),
         parallel_from: parallel_partition_from(n),
+        // At most one interior node fewer than leaves, and at most `n` leaves.
+        pairs: Arena::new(n - 1),
     };
     let nb = node_bounds(&refs);
-    let root = builder.build(&mut refs, &mut scratch, &mut ids, 0, 0, nb, true);
-    (Some(root), ids, SpareRefs(refs))
+    let mut cursor = Cursor::empty();
+    let root = builder.build(
+        &mut refs,
+        &mut scratch,
+        &mut ids,
+        0,
+        0,
+        nb,
+        true,
+        &mut cursor,
+    );
+    let tree = BuildTree {
+        root,
+        _pairs: builder.pairs,
+    };
+    (Some(tree), ids, SpareRefs(refs))
 }
 
 /// The smallest node that partitions in parallel in a build over `n` references: one
@@ -809,6 +826,7 @@ impl Builder {
         depth: usize,
         mut nb: NodeBounds,
         exact: bool,
+        pairs: &mut Cursor<[BuildNode; 2]>,
     ) -> BuildNode {
         let n = refs.len();
         let sampled = n >= self.sample_from;
@@ -891,15 +909,19 @@ impl Builder {
         let (ls, rs) = spare.split_at_mut(mid);
         let (li, ri) = ids.split_at_mut(mid);
         let e = exact_kids;
+        // A subtree handed to another task claims its own blocks of pair slots.
         let (l, r) = if n >= PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(ld, ls, li, offset, depth + 1, left, e),
-                || self.build(rd, rs, ri, offset + mid, depth + 1, right, e),
+                || self.build(ld, ls, li, offset, depth + 1, left, e, pairs),
+                || {
+                    let mut own = Cursor::empty();
+                    self.build(rd, rs, ri, offset + mid, depth + 1, right, e, &mut own)
+                },
             )
         } else {
             (
-                self.build(ld, ls, li, offset, depth + 1, left, e),
-                self.build(rd, rs, ri, offset + mid, depth + 1, right, e),
+                self.build(ld, ls, li, offset, depth + 1, left, e, pairs),
+                self.build(rd, rs, ri, offset + mid, depth + 1, right, e, pairs),
             )
         };
         // An exact box is its children's union; an inexact one is rebuilt as that.
@@ -910,7 +932,9 @@ impl Builder {
         };
         BuildNode::Interior {
             bounds,
-            children: Box::new([l, r]),
+            // SAFETY: the pair is read only through the `BuildTree` that will own the
+            // arena (`build_tree_sampling`), which lends its nodes out by reference.
+            children: unsafe { self.pairs.push(pairs, [l, r]) },
         }
     }
 
@@ -1612,6 +1636,7 @@ mod tests {
             block_shift: Some(0),
             sample_from: usize::MAX,
             parallel_from: PARALLEL_NODE,
+            pairs: Arena::new(0),
         };
         let c = builder.best_split(&src, &nb).expect("a split");
         let mut dst = src.clone();
@@ -1763,7 +1788,7 @@ mod tests {
         assert!(seen.iter().all(|&s| s));
         // Every box is exact: an interior node's the union of its children's, a leaf's
         // the union of its primitives' (sampled nodes rebuild theirs from below).
-        let mut stack = vec![&sampled];
+        let mut stack: Vec<&BuildNode> = vec![&sampled];
         let vals = |b: &BBox| [b.min.to_array(), b.max.to_array()];
         let mut interiors = 0;
         while let Some(n) = stack.pop() {
@@ -1818,6 +1843,7 @@ mod tests {
                 block_shift: Some(bs.trailing_zeros()),
                 sample_from: usize::MAX,
                 parallel_from: PARALLEL_NODE,
+                pairs: Arena::new(0),
             };
             for refs in &nodes {
                 let nb = node_bounds(refs);
@@ -2061,7 +2087,7 @@ mod tests {
                     );
                 }
                 assert!(seen.iter().all(|&s| s), "every primitive in a leaf");
-                let mut stack = vec![tree.as_ref().expect("a tree")];
+                let mut stack: Vec<&BuildNode> = vec![tree.as_ref().expect("a tree")];
                 let mut covered = 0;
                 while let Some(node) = stack.pop() {
                     match node {
@@ -2129,12 +2155,14 @@ mod tests {
                 block_shift: Some(bs.trailing_zeros()),
                 sample_from: usize::MAX,
                 parallel_from: PARALLEL_NODE,
+                pairs: Arena::new(0),
             };
             let divided = Builder {
                 opts,
                 block_shift: None,
                 sample_from: usize::MAX,
                 parallel_from: PARALLEL_NODE,
+                pairs: Arena::new(0),
             };
             for n in 0..100u32 {
                 assert_eq!(shifted.blocks(n), divided.blocks(n));

@@ -16,10 +16,6 @@ use crate::simd::slab_fma::FMA_SLAB;
 use crate::simd::{PACKET_WIDTH, Packet};
 use std::time::Instant;
 
-/// Levels of the build tree whose subtrees are freed as separate tasks
-/// ([`BuildNode::drop_in_parallel`]): up to 2^6 tasks.
-const DROP_LEVELS: usize = 6;
-
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
     /// Triangle meshes: groups of four, SoA.
@@ -241,17 +237,12 @@ where
             }),
             leaf_call: false,
         };
-        // The build tree is freed (in parallel tasks) while the shape walk runs, so
+        // The build tree (one arena of child pairs: `accel::build_arena`) is freed while
+        // the shape walk runs, so
         // `build_ms` now counts its drop (it ended the build before, after `build_ms`
         // was taken; `bench`'s build ms, timed around the call, counted it already).
-        let ((leaf_count, depth, sah, stack_need), ()) = rayon::join(
-            || bvh.shape(root_area),
-            || {
-                if let Some(t) = tree {
-                    t.drop_in_parallel(DROP_LEVELS);
-                }
-            },
-        );
+        let ((leaf_count, depth, sah, stack_need), ()) =
+            rayon::join(|| bvh.shape(root_area), || drop(tree));
         assert!(
             stack_need < SINGLE_STACK,
             "BVH{N} deeper than the BVH2 depth bound allows"
