@@ -69,8 +69,8 @@ fn parallel_collapse_lays_out_the_serial_tree() {
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles: prims.as_triangles(),
-            nodes: Vec::new(),
-            groups: Vec::new(),
+            nodes: crate::pages::LargeVec::new(),
+            groups: crate::pages::LargeVec::new(),
         };
         let root = c.collapse(&tree.expect("non-empty"), levels);
         // every bit of the arrays, NaN corners of unused lanes included

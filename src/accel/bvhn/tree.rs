@@ -7,9 +7,10 @@ use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
-use crate::accel::sah_build::build_tree_keeping_refs;
+use crate::accel::sah_build::{PrimRef, build_tree_keeping_refs};
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, PacketHitLanes, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
+use crate::pages::{ALWAYS_MAPPED_BYTES, LargeVec};
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
@@ -23,7 +24,7 @@ const DROP_LEVELS: usize = 6;
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
     /// Triangle meshes: groups of four, SoA.
-    Triangles(Vec<TriGroup4>),
+    Triangles(LargeVec<TriGroup4>),
     /// Anything else: the primitives in leaf order and their original indices.
     Scalar { prims: P, ids: Vec<u32> },
 }
@@ -55,7 +56,7 @@ impl Default for Prefetch {
 /// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]), with exact
 /// ([`BvhNode`], the default) or compressed ([`QNode`]) nodes: see [`WideNode`].
 pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
-    pub nodes: Vec<T>,
+    pub nodes: LargeVec<T>,
     pub(super) leaves: Leaves<P>,
     pub(super) root: u32,
     pub(super) info: AccelInfo,
@@ -123,12 +124,18 @@ where
         // large (`SpareRefs`: at 10^7 its 320 MB of pages would otherwise be unmapped
         // and 420 MB of fresh ones faulted in), sized by the collapse once its node
         // pass has counted them (`Collapse::gather`, `Collapse::collapse_parallel`).
-        let spare = triangles.map(|_| spare);
+        let spare = triangles
+            .filter(|_| n * std::mem::size_of::<PrimRef>() >= ALWAYS_MAPPED_BYTES)
+            .map(|_| spare);
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
-            nodes: Vec::with_capacity(n / 2 + 1),
-            groups: Vec::new(),
+            nodes: if parallel {
+                LargeVec::new()
+            } else {
+                LargeVec::with_capacity(n / 2 + 1)
+            },
+            groups: LargeVec::new(),
         };
         // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
         // node and group arrays before the collapse writes them, as Embree's allocator
@@ -207,7 +214,7 @@ where
         // copy would have the collapse write each node's leaf groups after it directly.
         // Compressed nodes are quantised from the exact ones (for exact nodes this is
         // the identity, collected in place).
-        let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
+        let nodes: LargeVec<T> = nodes.map(T::from_exact);
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
         let leaves = if triangles.is_some() {
             // Freed before the build tree, as it was when both were freed at the end of

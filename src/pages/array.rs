@@ -1,0 +1,353 @@
+//! A growable array that, from [`MAPPED_MIN_BYTES`] up, lives in a mapping of its own
+//! advised for transparent huge pages before its first touch.
+//!
+//! For the BVH's node and triangle-group arrays (`accel::bvhn`): a 10^6-triangle tree
+//! is ~21 MB of nodes and ~40 MB of groups, ~15,000 4 KiB pages, and its traversals
+//! miss the TLB on most node and group loads. Embree's allocator advises its blocks
+//! before writing them, and its 10^6 process holds ~62 MiB of huge pages; without them
+//! (`PR_SET_THP_DISABLE`) it lost 16-17 % on primary rays and 11-14 % on diffuse ones
+//! (pk26, session 26). Advising our arrays where `malloc` put them did not get them
+//! huge pages reliably: glibc serves a 40 MB block from the heap when freed arrays of
+//! an earlier build left room there (then only the whole 2 MiB pages not yet backed
+//! can become huge, and none of a recycled block's are), and maps it afresh otherwise
+//! at an address 16 bytes past a page. A mapping of our own, 2 MiB-aligned and advised
+//! while still untouched, is backed by huge pages from its first write on: a handful of
+//! huge-page faults (each zeroing 2 MiB) instead of ~15,000 small ones, and no copy
+//! afterwards (`MADV_COLLAPSE` of the finished arrays copied them: see the dead end in
+//! `accel::bvhn::tree`).
+//!
+//! Smaller arrays (and every array where the mapping fails, or off Linux) are ordinary
+//! `Vec` buffers of the global allocator; [`LargeVec::from_vec`] also adopts a `Vec`
+//! made elsewhere (the build's recycled reference memory, `accel::sah_build::SpareRefs`).
+
+use std::mem::MaybeUninit;
+use std::ptr::NonNull;
+
+/// Arrays of at least this many bytes (capacity) get a huge-page mapping of their own:
+/// two huge pages, as [`advise_huge_pages`](super::advise_huge_pages) asks; smaller ones
+/// stay on the heap.
+pub(crate) const MAPPED_MIN_BYTES: usize = 4 << 20;
+
+/// The transparent huge page size (x86-64).
+const HUGE: usize = 2 << 20;
+
+/// A vector of `Copy` values (no drop glue to run) whose buffer is either a `Vec`'s
+/// (freed as that `Vec` would be) or an anonymous mapping of its own, 2 MiB-aligned
+/// and advised for huge pages before anything is written to it (unmapped on drop).
+/// Reads go through `Deref<Target = [T]>`, so traversal code indexes it as a slice.
+pub struct LargeVec<T: Copy> {
+    ptr: NonNull<T>,
+    len: usize,
+    cap: usize,
+    /// Bytes of the mapping that `ptr` starts (a multiple of 2 MiB), or 0 for a `Vec`'s
+    /// buffer with capacity `cap`.
+    mapped: usize,
+}
+
+// SAFETY: a `LargeVec<T>` owns its values as a `Vec<T>` does (the buffer is reached only
+// through `&self` / `&mut self`), so it may move and be shared between threads exactly
+// when `T` may.
+unsafe impl<T: Copy + Send> Send for LargeVec<T> {}
+// SAFETY: as above; `&LargeVec<T>` gives only `&[T]`.
+unsafe impl<T: Copy + Sync> Sync for LargeVec<T> {}
+
+impl<T: Copy> LargeVec<T> {
+    const CHECK: () = assert!(
+        std::mem::size_of::<T>() > 0 && std::mem::align_of::<T>() <= HUGE,
+        "LargeVec holds sized values aligned to at most 2 MiB"
+    );
+
+    /// An empty vector without a buffer.
+    pub fn new() -> Self {
+        Self::from_vec(Vec::new())
+    }
+
+    /// Takes over `v`'s buffer (no copy); it stays a heap buffer.
+    pub fn from_vec(v: Vec<T>) -> Self {
+        let mut v = std::mem::ManuallyDrop::new(v);
+        let (len, cap) = (v.len(), v.capacity());
+        // A Vec's pointer is never null (dangling when it has no buffer).
+        let ptr = NonNull::new(v.as_mut_ptr()).expect("a Vec's pointer is non-null");
+        LargeVec {
+            ptr,
+            len,
+            cap,
+            mapped: 0,
+        }
+    }
+
+    /// An empty vector with room for `cap` values: in a huge-page mapping of its own
+    /// when that room is at least [`MAPPED_MIN_BYTES`], else on the heap.
+    pub fn with_capacity(cap: usize) -> Self {
+        let () = Self::CHECK;
+        let bytes = cap
+            .checked_mul(std::mem::size_of::<T>())
+            .expect("array size overflows");
+        if bytes >= MAPPED_MIN_BYTES
+            && let Some((ptr, mapped)) = map_huge(bytes)
+        {
+            return LargeVec {
+                ptr: ptr.cast(),
+                len: 0,
+                cap: mapped / std::mem::size_of::<T>(),
+                mapped,
+            };
+        }
+        Self::from_vec(Vec::with_capacity(cap))
+    }
+
+    /// Whether the buffer is a mapping of its own (advised for huge pages).
+    pub fn is_mapped(&self) -> bool {
+        self.mapped > 0
+    }
+
+    pub fn capacity(&self) -> usize {
+        self.cap
+    }
+
+    /// Makes room for at least `additional` more values: a new buffer (by
+    /// [`LargeVec::with_capacity`], at least double the old room) with the values
+    /// copied, when they do not fit.
+    pub fn reserve(&mut self, additional: usize) {
+        let need = self.len.checked_add(additional).expect("capacity overflow");
+        if need <= self.cap {
+            return;
+        }
+        let mut grown = Self::with_capacity(need.max(2 * self.cap));
+        grown.spare_capacity_mut()[..self.len].copy_from_slice(as_uninit(self));
+        // SAFETY: the first `self.len` slots were just written.
+        unsafe { grown.set_len(self.len) };
+        *self = grown;
+    }
+
+    pub fn push(&mut self, value: T) {
+        if self.len == self.cap {
+            self.reserve(1);
+        }
+        // SAFETY: `len < cap` now, and the buffer has room for `cap` values.
+        unsafe { self.ptr.as_ptr().add(self.len).write(value) };
+        self.len += 1;
+    }
+
+    /// The room past the values (`capacity - len` slots).
+    pub fn spare_capacity_mut(&mut self) -> &mut [MaybeUninit<T>] {
+        // SAFETY: slots `len..cap` lie in the buffer, which this vector owns and
+        // borrows mutably here; `MaybeUninit` needs no initialisation.
+        unsafe {
+            std::slice::from_raw_parts_mut(
+                self.ptr.as_ptr().add(self.len).cast::<MaybeUninit<T>>(),
+                self.cap - self.len,
+            )
+        }
+    }
+
+    /// # Safety
+    /// `len <= capacity`, and the first `len` slots hold values (written through
+    /// [`LargeVec::spare_capacity_mut`] or before).
+    pub unsafe fn set_len(&mut self, len: usize) {
+        debug_assert!(len <= self.cap);
+        self.len = len;
+    }
+
+    /// `f` of each value, in a vector of the same kind: in place when `U` is as large
+    /// as `T` (the identity map of exact BVH nodes), else in a new one.
+    pub fn map<U: Copy>(self, f: impl Fn(&T) -> U) -> LargeVec<U> {
+        let () = LargeVec::<U>::CHECK;
+        if !self.is_mapped() {
+            // The `Vec`'s own in-place collect where the layouts allow it.
+            return LargeVec::from_vec(self.into_vec_buffer().into_iter().map(|x| f(&x)).collect());
+        }
+        if std::mem::size_of::<U>() != std::mem::size_of::<T>() {
+            let mut out = LargeVec::with_capacity(self.len);
+            for x in self.iter() {
+                out.push(f(x));
+            }
+            return out;
+        }
+        let this = std::mem::ManuallyDrop::new(self);
+        let (ptr, len, mapped) = (this.ptr.as_ptr(), this.len, this.mapped);
+        for i in 0..len {
+            // SAFETY: slot `i` holds a `T`, read before the `U` of the same size is
+            // written over it; the mapping is 2 MiB-aligned, enough for `U`
+            // (`CHECK`); slots other than `i` are not touched.
+            unsafe {
+                let x = ptr.add(i).read();
+                ptr.add(i).cast::<U>().write(f(&x));
+            }
+        }
+        LargeVec {
+            // SAFETY: from a non-null pointer.
+            ptr: unsafe { NonNull::new_unchecked(ptr.cast::<U>()) },
+            len,
+            cap: mapped / std::mem::size_of::<U>(),
+            mapped,
+        }
+    }
+
+    /// The heap buffer as the `Vec` it came from (only for `!is_mapped()`).
+    fn into_vec_buffer(self) -> Vec<T> {
+        debug_assert!(!self.is_mapped());
+        let this = std::mem::ManuallyDrop::new(self);
+        // SAFETY: pointer, length and capacity of a `Vec<T>` taken apart in
+        // `from_vec` (or of one made by `map` from such parts), owned by `this`, which
+        // is never dropped.
+        unsafe { Vec::from_raw_parts(this.ptr.as_ptr(), this.len, this.cap) }
+    }
+}
+
+impl<T: Copy> Default for LargeVec<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Copy> Drop for LargeVec<T> {
+    fn drop(&mut self) {
+        if self.mapped == 0 {
+            // SAFETY: a `Vec<T>`'s parts, as in `into_vec_buffer`; `T: Copy` has no
+            // drop glue, so the values need nothing else.
+            drop(unsafe { Vec::from_raw_parts(self.ptr.as_ptr(), self.len, self.cap) });
+        } else {
+            #[cfg(target_os = "linux")]
+            // SAFETY: the mapping made by `map_huge` of `mapped` bytes at `ptr`, owned by
+            // this vector and unmapped once.
+            unsafe {
+                libc::munmap(self.ptr.as_ptr().cast(), self.mapped);
+            }
+        }
+    }
+}
+
+impl<T: Copy> std::ops::Deref for LargeVec<T> {
+    type Target = [T];
+    #[inline(always)]
+    fn deref(&self) -> &[T] {
+        // SAFETY: the first `len` slots hold values; the pointer is non-null and
+        // aligned (a `Vec`'s, or a 2 MiB-aligned mapping).
+        unsafe { std::slice::from_raw_parts(self.ptr.as_ptr(), self.len) }
+    }
+}
+
+impl<T: Copy> std::ops::DerefMut for LargeVec<T> {
+    #[inline(always)]
+    fn deref_mut(&mut self) -> &mut [T] {
+        // SAFETY: as in `deref`, borrowed mutably through `&mut self`.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.as_ptr(), self.len) }
+    }
+}
+
+impl<'a, T: Copy> IntoIterator for &'a LargeVec<T> {
+    type Item = &'a T;
+    type IntoIter = std::slice::Iter<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+impl<T: Copy + std::fmt::Debug> std::fmt::Debug for LargeVec<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+/// The values as `MaybeUninit`s, for copying into spare room.
+fn as_uninit<T: Copy>(s: &[T]) -> &[MaybeUninit<T>] {
+    // SAFETY: `MaybeUninit<T>` has `T`'s layout, and an initialised value is a valid
+    // `MaybeUninit`.
+    unsafe { std::slice::from_raw_parts(s.as_ptr().cast(), s.len()) }
+}
+
+/// A fresh private anonymous mapping of `bytes` rounded up to 2 MiB, starting on a
+/// 2 MiB boundary and advised for huge pages (`MADV_HUGEPAGE`; this host's
+/// `transparent_hugepage` is `madvise`) before anything touches it: (start, length).
+/// `None` where the mapping fails, and off Linux.
+#[cfg(target_os = "linux")]
+fn map_huge(bytes: usize) -> Option<(NonNull<u8>, usize)> {
+    let len = bytes.checked_next_multiple_of(HUGE)?;
+    // One huge page of slack, so that a 2 MiB boundary lies in the first one.
+    let over = len.checked_add(HUGE)?;
+    // SAFETY: a new private anonymous mapping at an address of the kernel's choice
+    // (`MAP_NORESERVE`: only the touched pages are ever backed).
+    let p = unsafe {
+        libc::mmap(
+            std::ptr::null_mut(),
+            over,
+            libc::PROT_READ | libc::PROT_WRITE,
+            libc::MAP_PRIVATE | libc::MAP_ANONYMOUS | libc::MAP_NORESERVE,
+            -1,
+            0,
+        )
+    };
+    if p == libc::MAP_FAILED {
+        return None;
+    }
+    let (p, start) = (p as usize, (p as usize).next_multiple_of(HUGE));
+    // SAFETY: the slack before `start` and after `start + len` is part of the mapping
+    // just made and holds nothing; unmapping it leaves exactly `[start, start + len)`.
+    // MADV_HUGEPAGE on that untouched range only changes how its pages will be backed.
+    unsafe {
+        if start > p {
+            libc::munmap(p as *mut libc::c_void, start - p);
+        }
+        if p + over > start + len {
+            libc::munmap((start + len) as *mut libc::c_void, p + over - start - len);
+        }
+        libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
+    }
+    Some((NonNull::new(start as *mut u8)?, len))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn map_huge(_bytes: usize) -> Option<(NonNull<u8>, usize)> {
+    None
+}
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use super::*;
+    use crate::pages::vm_flags_at;
+
+    /// A large array gets a 2 MiB-aligned mapping advised for huge pages (`hg`), and
+    /// its values are what was pushed; a small one stays on the heap; both survive
+    /// growth and the in-place map.
+    #[test]
+    fn large_arrays_get_an_advised_mapping_small_ones_the_heap() {
+        let n = (9 << 20) / 16;
+        let mut large = LargeVec::<[u32; 4]>::with_capacity(n);
+        assert!(large.is_mapped());
+        assert_eq!(large.as_ptr() as usize % HUGE, 0, "2 MiB-aligned");
+        assert!(large.capacity() >= n);
+        for i in 0..n as u32 {
+            large.push([i, i + 1, i + 2, i + 3]);
+        }
+        let flags = vm_flags_at(large.as_ptr() as usize).expect("the mapping in smaps");
+        assert!(flags.iter().any(|f| f == "hg"), "not advised: {flags:?}");
+        let doubled = large.map(|v| [v[0] * 2, v[1], v[2], v[3]]);
+        assert!(doubled.is_mapped());
+        assert_eq!(doubled.len(), n);
+        for (i, v) in doubled.iter().enumerate() {
+            let i = i as u32;
+            assert_eq!(*v, [2 * i, i + 1, i + 2, i + 3]);
+        }
+        let halves = doubled.map(|v| v[0] as u64);
+        assert_eq!(halves.len(), n);
+        assert!(halves.iter().enumerate().all(|(i, &v)| v == 2 * i as u64));
+
+        let mut small = LargeVec::<u32>::with_capacity(1000);
+        assert!(!small.is_mapped());
+        for i in 0..5000 {
+            small.push(i);
+        }
+        assert!(small.iter().copied().eq(0..5000));
+        // Growing past 4 MiB moves the values into a mapping.
+        small.reserve(2 << 20);
+        assert!(small.is_mapped());
+        assert!(small.iter().copied().eq(0..5000));
+        let flags = vm_flags_at(small.as_ptr() as usize).expect("mapping");
+        assert!(flags.iter().any(|f| f == "hg"), "not advised: {flags:?}");
+        let v = LargeVec::from_vec(vec![1u8, 2, 3]);
+        assert!(!v.is_mapped());
+        assert_eq!(&v[..], &[1, 2, 3]);
+        assert_eq!(&v.map(|&x| x as u32 + 1)[..], &[2, 3, 4]);
+    }
+}
