@@ -16,6 +16,24 @@
 //! afterwards (`MADV_COLLAPSE` of the finished arrays copied them: see the dead end in
 //! `accel::bvhn::tree`).
 //!
+//! Measured (hp27, session 27, 2026-11-29, AVX-512, interleaved rounds, Mrays/s
+//! medians of 5 passes; `nomap` is the same binary with the mapping switched off by an
+//! environment variable, since removed, `base` the session's base /tmp/base27):
+//! - 10^6, 1 thread (`stream_profile /tmp/m1e6.obj MODE W 5`, 6 rounds, load 1.0-1.2),
+//!   min/median/max of the rounds: bvh8-stream diffuse base 3.66/3.83/4.09, nomap
+//!   3.87/4.00/4.15, mapped 3.83/4.28/4.58; bvh8-packet primary base 25.36/26.42/29.45,
+//!   nomap 25.38/25.85/26.78, mapped 26.59/27.56/28.20.
+//! - 10^6, 2 threads (`bench --mesh /tmp/m1e6.obj --threads 2 --reps 5 --modes
+//!   bvh8-packet,bvh8-stream`, 4 rounds, load 1.0-1.5, `cpu` 0.98-0.99): bvh8-packet
+//!   primary base 54.28/55.53/59.05, nomap 54.02/54.92/59.28, mapped 59.75/60.52/61.76;
+//!   bvh8-stream diffuse base 7.81/7.94/8.08, nomap 8.79/9.02/9.23, mapped 9.46/9.89/
+//!   10.30; build ms (medians) base 192/191, nomap 199/200, mapped 181/182.
+//! - The bunny at 1 thread (its node array's room, 8.9 MB, is mapped; its 2.9 MB of
+//!   groups are not): `bench --threads 1 --reps 5`, 4 rounds against base, load ~1.3:
+//!   bvh8-stream diffuse 6.22/6.50/6.65 -> 7.30/7.49/7.59, build 15.6 -> 14.2 ms. A 1
+//!   MiB threshold (the bunny's groups, and its nodes at 2 threads, mapped too) measured
+//!   level against 4 MiB at 1 and 2 threads (4 rounds each), so the threshold stayed.
+//!
 //! Smaller arrays (and every array where the mapping fails, or off Linux) are ordinary
 //! `Vec` buffers of the global allocator; [`LargeVec::from_vec`] also adopts a `Vec`
 //! made elsewhere (the build's recycled reference memory, `accel::sah_build::SpareRefs`).

@@ -124,9 +124,7 @@ where
         // large (`SpareRefs`: at 10^7 its 320 MB of pages would otherwise be unmapped
         // and 420 MB of fresh ones faulted in), sized by the collapse once its node
         // pass has counted them (`Collapse::gather`, `Collapse::collapse_parallel`).
-        let spare = triangles
-            .filter(|_| n * std::mem::size_of::<PrimRef>() >= ALWAYS_MAPPED_BYTES)
-            .map(|_| spare);
+        let spare = triangles.map(|_| spare);
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
@@ -162,6 +160,24 @@ where
         // groups' 38 MiB, 1 thread): primary 24.15/26.56/26.63/27.68 without against
         // 27.03/27.60/27.73/28.44 with (4 rounds), but 2-thread builds 180-189 -> 203-239
         // ms, which the build target against Embree's (220-258 ms) cannot spare.
+        // Since session 27 (hp27) both arrays are `LargeVec`s (`pages::LargeVec`): from
+        // 4 MiB up a 2 MiB-aligned mapping of their own, advised for huge pages before
+        // the collapse's first write, so the tree is in huge pages from the start (62
+        // MiB of `AnonHugePages` at 10^6, against 0-8 before) with no copy. The nodes:
+        // at 1 thread room for n / 2 + 1 reserved here (the collapse pushes them as it
+        // goes; only the pages it writes are backed), at 2 threads the exact count,
+        // reserved by the parallel collapse. The groups at their exact count, or in
+        // the build's spare reference memory where that is recycled (`SpareRefs`, 10^7:
+        // advised for huge pages before its first touch already); a spare array too
+        // small to be recycled is dropped here, before the collapse.
+        // The upper bound measured first (env switch, removed): `MADV_COLLAPSE` of both
+        // arrays after the build, same binary on/off, `stream_profile /tmp/m1e6.obj MODE
+        // W 5`, 1 thread, AVX-512, 6 interleaved rounds, load 2.0-2.6, medians of the
+        // rounds' medians (Mrays/s): bvh8-stream diffuse 4.39 -> 4.64 (+5.6 %), bvh4-stream
+        // diffuse 4.12 -> 4.44 (+7.8 %), bvh8-packet primary 28.45 -> 29.24 (+2.8 %),
+        // shadow level. The `LargeVec` form's figures are in the commit messages and
+        // `pages::array`'s header.
+        let spare = spare.filter(|_| n * std::mem::size_of::<PrimRef>() >= ALWAYS_MAPPED_BYTES);
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
