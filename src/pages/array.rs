@@ -34,6 +34,21 @@
 //!   MiB threshold (the bunny's groups, and its nodes at 2 threads, mapped too) measured
 //!   level against 4 MiB at 1 and 2 threads (4 rounds each), so the threshold stayed.
 //!
+//! - With dropped mappings kept for the next vectors ([`KEPT`]; the figures above are
+//!   without), against base, 10^6: `build_time 1000000 5 T`, 4 rounds, load 1.3-1.4,
+//!   build ms medians 1 thread 328/349/332/335 -> 292/310/301/288, 2 threads 183/187/
+//!   182/201 -> 180/196/187/183; `build_time 10000000 2 2`, two pairs (min/max) 2216/
+//!   2259 and 2281/2297 against 2248/2369 and 2125/2436. `bench --mesh /tmp/m1e6.obj
+//!   --threads 1 --reps 5 --modes bvh8-packet,bvh8-stream,bvh4-stream`, 4 rounds, load
+//!   1.05-1.24: bvh8-stream diffuse 3.80/3.96/4.00 -> 4.26/4.37/4.77, bvh4-stream
+//!   diffuse 3.59/3.79/3.94 -> 4.13/4.23/4.45, bvh8-packet primary 25.40/26.41/27.42 ->
+//!   28.25/28.62/28.94, build ms 317.8 -> 275.7; `--threads 2 --modes
+//!   bvh8-packet,bvh8-stream`, 3 rounds, load 0.96-1.23: primary 54.20/54.79/55.01 ->
+//!   56.80/57.71/59.04, bvh8-stream diffuse 7.91/8.04/8.23 -> 8.88/9.04/9.10, build ms
+//!   196/203 -> 192/174. Embree in the same window (`embree_bench /tmp/m1e6.obj
+//!   --threads T --reps 5`, best mode, stream): diffuse 4.17 (1 thread), 8.35 (2),
+//!   build 414 / 210 ms.
+//!
 //! Smaller arrays (and every array where the mapping fails, or off Linux) are ordinary
 //! `Vec` buffers of the global allocator; [`LargeVec::from_vec`] also adopts a `Vec`
 //! made elsewhere (the build's recycled reference memory, `accel::sah_build::SpareRefs`).
@@ -226,12 +241,9 @@ impl<T: Copy> Drop for LargeVec<T> {
             // drop glue, so the values need nothing else.
             drop(unsafe { Vec::from_raw_parts(self.ptr.as_ptr(), self.len, self.cap) });
         } else {
+            // The mapping made by `map_huge`, owned by this vector: kept or unmapped.
             #[cfg(target_os = "linux")]
-            // SAFETY: the mapping made by `map_huge` of `mapped` bytes at `ptr`, owned by
-            // this vector and unmapped once.
-            unsafe {
-                libc::munmap(self.ptr.as_ptr().cast(), self.mapped);
-            }
+            give_back(self.ptr.as_ptr().cast(), self.mapped);
         }
     }
 }
@@ -282,6 +294,9 @@ fn as_uninit<T: Copy>(s: &[T]) -> &[MaybeUninit<T>] {
 #[cfg(target_os = "linux")]
 fn map_huge(bytes: usize) -> Option<(NonNull<u8>, usize)> {
     let len = bytes.checked_next_multiple_of(HUGE)?;
+    if let Some(kept) = take_kept(len) {
+        return Some(kept);
+    }
     // One huge page of slack, so that a 2 MiB boundary lies in the first one.
     let over = len.checked_add(HUGE)?;
     // SAFETY: a new private anonymous mapping at an address of the kernel's choice
@@ -313,6 +328,51 @@ fn map_huge(bytes: usize) -> Option<(NonNull<u8>, usize)> {
         libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
     }
     Some((NonNull::new(start as *mut u8)?, len))
+}
+
+/// Mappings of dropped vectors kept for the next ones, at most [`KEEP`]: (start,
+/// length). A build's tree arrays are dropped when the next build of the same mesh
+/// (a benchmark's repetitions, a scene rebuilt per frame) needs the same sizes again;
+/// a kept mapping's pages are already backed (by huge pages), so the next tree is
+/// written without page faults, as the builder's own arrays are when glibc recycles
+/// them from its heap. Fresh huge pages are cheap on a quiet host but cost a host
+/// fault each when the VM's free memory was reported to the host (see
+/// `advise_huge_pages`): `build_time 1000000 5 1` without keeping, 4 runs at load 0.5,
+/// build ms min/median/max 333.9/472.6/477.3 and 319.5/457.4/511.7 against the base's
+/// 324.1/329.7/363.0 and 317.8/322.4/345.5 (with the tree's arrays from glibc).
+#[cfg(target_os = "linux")]
+static KEPT: std::sync::Mutex<Vec<(usize, usize)>> = std::sync::Mutex::new(Vec::new());
+
+/// How many dropped mappings [`KEPT`] holds: a tree's two arrays, for two trees (a
+/// benchmark's BVH8 and BVH4 alternating).
+#[cfg(target_os = "linux")]
+const KEEP: usize = 4;
+
+/// The smallest kept mapping of at least `len` bytes, taken out of [`KEPT`].
+#[cfg(target_os = "linux")]
+fn take_kept(len: usize) -> Option<(NonNull<u8>, usize)> {
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    let i = (0..kept.len())
+        .filter(|&i| kept[i].1 >= len)
+        .min_by_key(|&i| kept[i].1)?;
+    let (start, mapped) = kept.swap_remove(i);
+    Some((NonNull::new(start as *mut u8)?, mapped))
+}
+
+/// Keeps the mapping `[start, start + mapped)` for a later vector, or unmaps it where
+/// [`KEEP`] are kept already.
+#[cfg(target_os = "linux")]
+fn give_back(start: *mut u8, mapped: usize) {
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    if kept.len() < KEEP {
+        kept.push((start as usize, mapped));
+        return;
+    }
+    drop(kept);
+    // SAFETY: a mapping made by `map_huge`, no longer used by any vector, unmapped once.
+    unsafe {
+        libc::munmap(start.cast(), mapped);
+    }
 }
 
 #[cfg(not(target_os = "linux"))]
