@@ -5,6 +5,7 @@
 use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
 use crate::accel::Triangles;
 use crate::accel::sah_build::{BuildNode, SpareRefs};
+use crate::pages::LargeVec;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use rayon::prelude::*;
@@ -16,8 +17,8 @@ pub(super) const PARALLEL_COLLAPSE_LEVELS: usize = 2;
 pub(super) struct Collapse<'a, const N: usize> {
     pub(super) ids: &'a [u32],
     pub(super) triangles: Option<&'a Triangles>,
-    pub(super) nodes: Vec<BvhNode<N>>,
-    pub(super) groups: Vec<TriGroup4>,
+    pub(super) nodes: LargeVec<BvhNode<N>>,
+    pub(super) groups: LargeVec<TriGroup4>,
 }
 
 /// Triangle leaves met by the node pass of a collapse, in the order their groups are
@@ -113,8 +114,10 @@ impl<const N: usize> Collapse<'_, N> {
                     let mut c = Collapse::<N> {
                         ids,
                         triangles,
-                        nodes: Vec::with_capacity(((end - first) as usize).div_ceil(4)),
-                        groups: Vec::new(),
+                        nodes: LargeVec::from_vec(Vec::with_capacity(
+                            ((end - first) as usize).div_ceil(4),
+                        )),
+                        groups: LargeVec::new(),
                     };
                     let mut pending = PendingLeaves::default();
                     let root = c.collapse_nodes(t, &mut pending);
@@ -154,7 +157,7 @@ impl<const N: usize> Collapse<'_, N> {
             && self.groups.capacity() == 0
             && let Some(spare) = spare
         {
-            self.groups = spare.into_vec(gb - group_start);
+            self.groups = LargeVec::from_vec(spare.into_vec(gb - group_start));
         }
         self.nodes.reserve(nb - node_start);
         self.groups.reserve(gb - group_start);
@@ -220,7 +223,7 @@ impl<const N: usize> Collapse<'_, N> {
         if self.groups.capacity() == 0
             && let Some(spare) = spare
         {
-            self.groups = spare.into_vec(blocks);
+            self.groups = LargeVec::from_vec(spare.into_vec(blocks));
         }
         self.groups.reserve(blocks);
         // Tried, no measurable win, reverted (issue 12, big21, 2026-11-28, commit a8aec4c
@@ -362,7 +365,7 @@ enum Top<'t, const N: usize> {
 /// A task's subtree collapsed alone: its nodes and its root's reference (node and
 /// group indices from 0), its triangle leaves' ranges and their group count.
 struct Part<const N: usize> {
-    nodes: Vec<BvhNode<N>>,
+    nodes: LargeVec<BvhNode<N>>,
     leaves: Vec<(u32, u32)>,
     groups: usize,
     root: u32,
@@ -587,8 +590,8 @@ mod tests {
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles: Some(tris),
-            nodes: Vec::new(),
-            groups: Vec::new(),
+            nodes: LargeVec::new(),
+            groups: LargeVec::new(),
         };
         let root = c.collapse(&tree, levels);
         let (mut nodes, mut groups) = (Vec::new(), Vec::new());

@@ -69,8 +69,8 @@ fn parallel_collapse_lays_out_the_serial_tree() {
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles: prims.as_triangles(),
-            nodes: Vec::new(),
-            groups: Vec::new(),
+            nodes: crate::pages::LargeVec::new(),
+            groups: crate::pages::LargeVec::new(),
         };
         let root = c.collapse(&tree.expect("non-empty"), levels);
         // every bit of the arrays, NaN corners of unused lanes included
@@ -278,4 +278,73 @@ fn large_builds_validate_at_one_and_two_threads() {
     let (a, b) = (one.info(), two.info());
     assert_eq!((a.nodes, a.leaves), (b.nodes, b.leaves));
     assert_eq!(a.sah_cost.to_bits(), b.sah_cost.to_bits());
+    #[cfg(target_os = "linux")]
+    for (threads, bvh) in [(1, &one), (2, &two)] {
+        let super::tree::Leaves::Triangles(groups) = &bvh.leaves else {
+            panic!("triangle leaves")
+        };
+        tree_arrays_are_advised(threads, &bvh.nodes, groups);
+    }
+}
+
+/// The triangle groups of a tree whose groups reach
+/// [`MAPPED_MIN_BYTES`](crate::pages::MAPPED_MIN_BYTES) lie in a mapping of their own,
+/// 2 MiB-aligned and advised for huge pages (`hg` in `/proc/self/smaps`) before the
+/// build wrote them (`pages::LargeVec`); so do the nodes where their array is that
+/// large: at 1 thread always (its room, a node per two triangles, is reserved before
+/// the collapse counts them), at 2 threads where the nodes themselves reach it.
+#[cfg(target_os = "linux")]
+fn tree_arrays_are_advised<T: Copy, G: Copy>(
+    threads: usize,
+    nodes: &crate::pages::LargeVec<T>,
+    groups: &crate::pages::LargeVec<G>,
+) {
+    use crate::pages::MAPPED_MIN_BYTES;
+    let node_bytes = size_of_val(&nodes[..]);
+    let group_bytes = size_of_val(&groups[..]);
+    assert!(
+        group_bytes >= MAPPED_MIN_BYTES,
+        "{group_bytes} bytes of groups"
+    );
+    assert_eq!(
+        nodes.is_mapped(),
+        threads == 1 || node_bytes >= MAPPED_MIN_BYTES,
+        "{threads} threads, {node_bytes} bytes of nodes"
+    );
+    assert!(groups.is_mapped(), "{threads} threads: groups on the heap");
+    for (what, mapped, ptr) in [
+        ("nodes", nodes.is_mapped(), nodes.as_ptr() as usize),
+        ("groups", true, groups.as_ptr() as usize),
+    ] {
+        if !mapped {
+            continue;
+        }
+        assert_eq!(ptr % (2 << 20), 0, "{what} not 2 MiB-aligned");
+        let flags = crate::pages::vm_flags_at(ptr).expect("the mapping in smaps");
+        assert!(
+            flags.iter().any(|f| f == "hg"),
+            "{what} not advised: {flags:?}"
+        );
+    }
+}
+
+/// A small tree's arrays (under `MAPPED_MIN_BYTES`) stay ordinary heap buffers, at 1
+/// and 2 threads.
+#[test]
+fn small_trees_keep_heap_arrays() {
+    let tris = soup();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let bvh = pool.install(|| Bvh8::build(tris.clone()));
+        let super::tree::Leaves::Triangles(groups) = &bvh.leaves else {
+            panic!("triangle leaves")
+        };
+        assert!(
+            !groups.is_mapped() && !bvh.nodes.is_mapped(),
+            "{threads} threads"
+        );
+    }
 }

@@ -7,9 +7,10 @@ use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
-use crate::accel::sah_build::build_tree_keeping_refs;
+use crate::accel::sah_build::{PrimRef, build_tree_keeping_refs};
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, PacketHitLanes, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
+use crate::pages::{ALWAYS_MAPPED_BYTES, LargeVec};
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
@@ -19,7 +20,7 @@ use std::time::Instant;
 /// What the leaves hold.
 pub(super) enum Leaves<P> {
     /// Triangle meshes: groups of four, SoA.
-    Triangles(Vec<TriGroup4>),
+    Triangles(LargeVec<TriGroup4>),
     /// Anything else: the primitives in leaf order and their original indices.
     Scalar { prims: P, ids: Vec<u32> },
 }
@@ -51,7 +52,7 @@ impl Default for Prefetch {
 /// An N-wide BVH over one primitive set (N = 4 or 8: see [`NodeWidth`]), with exact
 /// ([`BvhNode`], the default) or compressed ([`QNode`]) nodes: see [`WideNode`].
 pub struct Bvh<P: Primitives, const N: usize, T: WideNode<N> = BvhNode<N>> {
-    pub nodes: Vec<T>,
+    pub nodes: LargeVec<T>,
     pub(super) leaves: Leaves<P>,
     pub(super) root: u32,
     pub(super) info: AccelInfo,
@@ -123,8 +124,12 @@ where
         let mut c = Collapse::<N> {
             ids: &ids,
             triangles,
-            nodes: Vec::with_capacity(n / 2 + 1),
-            groups: Vec::new(),
+            nodes: if parallel {
+                LargeVec::new()
+            } else {
+                LargeVec::with_capacity(n / 2 + 1)
+            },
+            groups: LargeVec::new(),
         };
         // Tried, no clear win, removed (issue 12, pk17): `madvise(MADV_HUGEPAGE)` on the
         // node and group arrays before the collapse writes them, as Embree's allocator
@@ -151,6 +156,24 @@ where
         // groups' 38 MiB, 1 thread): primary 24.15/26.56/26.63/27.68 without against
         // 27.03/27.60/27.73/28.44 with (4 rounds), but 2-thread builds 180-189 -> 203-239
         // ms, which the build target against Embree's (220-258 ms) cannot spare.
+        // Since session 27 (hp27) both arrays are `LargeVec`s (`pages::LargeVec`): from
+        // 4 MiB up a 2 MiB-aligned mapping of their own, advised for huge pages before
+        // the collapse's first write, so the tree is in huge pages from the start (62
+        // MiB of `AnonHugePages` at 10^6, against 0-8 before) with no copy. The nodes:
+        // at 1 thread room for n / 2 + 1 reserved here (the collapse pushes them as it
+        // goes; only the pages it writes are backed), at 2 threads the exact count,
+        // reserved by the parallel collapse. The groups at their exact count, or in
+        // the build's spare reference memory where that is recycled (`SpareRefs`, 10^7:
+        // advised for huge pages before its first touch already); a spare array too
+        // small to be recycled is dropped here, before the collapse.
+        // The upper bound measured first (env switch, removed): `MADV_COLLAPSE` of both
+        // arrays after the build, same binary on/off, `stream_profile /tmp/m1e6.obj MODE
+        // W 5`, 1 thread, AVX-512, 6 interleaved rounds, load 2.0-2.6, medians of the
+        // rounds' medians (Mrays/s): bvh8-stream diffuse 4.39 -> 4.64 (+5.6 %), bvh4-stream
+        // diffuse 4.12 -> 4.44 (+7.8 %), bvh8-packet primary 28.45 -> 29.24 (+2.8 %),
+        // shadow level. The `LargeVec` form's figures are in the commit messages and
+        // `pages::array`'s header.
+        let spare = spare.filter(|_| n * std::mem::size_of::<PrimRef>() >= ALWAYS_MAPPED_BYTES);
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
@@ -203,7 +226,7 @@ where
         // copy would have the collapse write each node's leaf groups after it directly.
         // Compressed nodes are quantised from the exact ones (for exact nodes this is
         // the identity, collected in place).
-        let nodes: Vec<T> = nodes.into_iter().map(|n| T::from_exact(&n)).collect();
+        let nodes: LargeVec<T> = nodes.map(T::from_exact);
         let root_area = tree.as_ref().map_or(0.0, |t| t.bounds().area());
         let leaves = if triangles.is_some() {
             // Freed before the build tree, as it was when both were freed at the end of
