@@ -594,6 +594,12 @@ pub(super) struct SpareRefs(Vec<PrimRef>);
 const RECYCLE_MIN_BYTES: usize = ALWAYS_MAPPED_BYTES;
 
 impl SpareRefs {
+    /// Whether [`SpareRefs::into_vec`] takes the block over (it is large enough to be
+    /// a mapping of its own) rather than allocating afresh.
+    pub(super) fn recycles(&self) -> bool {
+        self.0.capacity() * std::mem::size_of::<PrimRef>() >= RECYCLE_MIN_BYTES
+    }
+
     /// An empty vector with room for `capacity` values of `T`: in the spare array's
     /// memory, resized to fit (`realloc`, which for a mapped block moves or extends
     /// its mapping without copying the pages), when the spare array is large; else a

@@ -348,6 +348,12 @@ static KEPT: std::sync::Mutex<Vec<(usize, usize)>> = std::sync::Mutex::new(Vec::
 #[cfg(target_os = "linux")]
 const KEEP: usize = 4;
 
+/// The most bytes [`KEPT`] holds, resident after their trees are gone: two 10^6-triangle
+/// trees' arrays (~61 MB each). A larger mapping (a 10^7 tree's ~210 MB of nodes) is
+/// unmapped when dropped, so a library user who drops a big tree gets its memory back.
+#[cfg(target_os = "linux")]
+const KEEP_BYTES: usize = 192 << 20;
+
 /// The smallest kept mapping of at least `len` bytes, taken out of [`KEPT`].
 #[cfg(target_os = "linux")]
 fn take_kept(len: usize) -> Option<(NonNull<u8>, usize)> {
@@ -360,11 +366,12 @@ fn take_kept(len: usize) -> Option<(NonNull<u8>, usize)> {
 }
 
 /// Keeps the mapping `[start, start + mapped)` for a later vector, or unmaps it where
-/// [`KEEP`] are kept already.
+/// [`KEEP`] are kept already or it would take the kept bytes past [`KEEP_BYTES`].
 #[cfg(target_os = "linux")]
 fn give_back(start: *mut u8, mapped: usize) {
     let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
-    if kept.len() < KEEP {
+    let held: usize = kept.iter().map(|k| k.1).sum();
+    if kept.len() < KEEP && held + mapped <= KEEP_BYTES {
         kept.push((start as usize, mapped));
         return;
     }

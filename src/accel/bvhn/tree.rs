@@ -7,10 +7,10 @@ use super::packet::PACKET_MIN_ACTIVE;
 use super::qnode::QNode;
 use super::stack::SINGLE_STACK;
 use crate::accel::filter::{FilterSink, HitFilter, QueryOptions};
-use crate::accel::sah_build::{PrimRef, build_tree_keeping_refs};
+use crate::accel::sah_build::{SpareRefs, build_tree_keeping_refs};
 use crate::accel::{Accel, AccelInfo, Bvh2BuildOptions, PacketHitLanes, Primitives};
 use crate::geometry::{Hit, Ray, RayPacket, RayQuery};
-use crate::pages::{ALWAYS_MAPPED_BYTES, LargeVec};
+use crate::pages::LargeVec;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use crate::simd::slab_fma::FMA_SLAB;
@@ -173,7 +173,7 @@ where
         // diffuse 4.12 -> 4.44 (+7.8 %), bvh8-packet primary 28.45 -> 29.24 (+2.8 %),
         // shadow level. The `LargeVec` form's figures are in the commit messages and
         // `pages::array`'s header.
-        let spare = spare.filter(|_| n * std::mem::size_of::<PrimRef>() >= ALWAYS_MAPPED_BYTES);
+        let spare = spare.filter(SpareRefs::recycles);
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
