@@ -25,7 +25,11 @@
 //! generator at 10^7 triangles, build ms 5,578 / 4,536 against 5,348 / 4,640) and 10^6
 //! builds were faster (fresh process, 4 rounds: 520 / 436 / 613 / 440 against 413 /
 //! 407 / 379 / 383 ms). Chunks below glibc's largest mmap threshold come from the heap
-//! once a build has freed its large arrays, as the boxes did.
+//! once a build has freed its large arrays, as the boxes did. The chunks against the
+//! boxes (interleaved, wall ms medians): `build_time 10000000 2 1` 3,452 / 3,586 against
+//! 3,509 / 3,530; `build_time 1000000 7 1` 342 / 333 against 338 / 337; `build_time
+//! 1000000 7 2` 188 / 178 against 178 / 161; a 10^6 build at 1 thread in a fresh process
+//! 409 / 379 / 561 / 387 against 365 / 347 / 410 / 361 ms.
 
 use crate::pages::advise_huge_pages;
 use std::alloc::Layout;
