@@ -15,6 +15,11 @@
 //! recursive drop had taken 10-12 ms of a 10^6 build on one thread, then was spread
 //! over rayon tasks: issue 12, helper bd25, 2026-11-29, `build_time 1000000 5 2`).
 //!
+//! helper big19 (session 19, recorded in `sah_build.rs`'s header) had tried a bump
+//! arena without huge pages (one worst-case array, then 256 KiB heap chunks) and found
+//! repeated 1-thread 10^6 builds no faster; so are these (below), the gain is at 2
+//! threads and in a fresh process.
+//!
 //! Chunks rather than one reservation for the largest possible tree (one pair fewer
 //! than primitives, 96 bytes each), measured (session 27, AVX-512, 1 thread): the single
 //! reservation was mapped afresh by every build, and a 10^7 build, whose ~320 MB of

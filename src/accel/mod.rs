@@ -26,6 +26,8 @@ mod scene_hit;
 pub mod spatial;
 mod tiny;
 
+/// The buffer type of [`Bvh::nodes`] (a slice through `Deref`).
+pub use crate::pages::LargeVec;
 pub use bruteforce::BruteForce;
 pub use bvh2::{Bvh2, Bvh2BuildOptions, Bvh2Node};
 pub use bvhn::{

@@ -52,7 +52,10 @@
 //! (256 KiB, from glibc's heap) still 23,868 faults (the freed chunks are trimmed
 //! from the heap's top) and 483/406/397/425/402/426/406 before against 434/421/407/
 //! 390/464/393/429 (medians of the rounds 406 / 421): no win shows, removed. The boxes
-//! come back from the heap every build; the arena's pages did not.
+//! come back from the heap every build; the arena's pages did not. Taken in another
+//! form in session 27 (`accel::build_arena`): 16 MiB chunks advised for huge pages,
+//! level with the boxes on repeated 1-thread builds as here, faster on 2-thread builds
+//! and on a single build in a fresh process (numbers in that file).
 //!
 //! Issue 12, helper bld21, 2026-11-28 (AVX-512 host, load 5-7, 1 thread): the
 //! partition's side bounds as two 8-lane [`BinBox`]es, the bins' offsets from one vector
@@ -832,7 +835,7 @@ impl Builder {
         depth: usize,
         mut nb: NodeBounds,
         exact: bool,
-        pairs: &mut Cursor<[BuildNode; 2]>,
+        cursor: &mut Cursor<[BuildNode; 2]>,
     ) -> BuildNode {
         let n = refs.len();
         let sampled = n >= self.sample_from;
@@ -918,7 +921,7 @@ impl Builder {
         // A subtree handed to another task claims its own blocks of pair slots.
         let (l, r) = if n >= PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(ld, ls, li, offset, depth + 1, left, e, pairs),
+                || self.build(ld, ls, li, offset, depth + 1, left, e, cursor),
                 || {
                     let mut own = Cursor::empty();
                     self.build(rd, rs, ri, offset + mid, depth + 1, right, e, &mut own)
@@ -926,8 +929,8 @@ impl Builder {
             )
         } else {
             (
-                self.build(ld, ls, li, offset, depth + 1, left, e, pairs),
-                self.build(rd, rs, ri, offset + mid, depth + 1, right, e, pairs),
+                self.build(ld, ls, li, offset, depth + 1, left, e, cursor),
+                self.build(rd, rs, ri, offset + mid, depth + 1, right, e, cursor),
             )
         };
         // An exact box is its children's union; an inexact one is rebuilt as that.
@@ -940,7 +943,7 @@ impl Builder {
             bounds,
             // SAFETY: the pair is read only through the `BuildTree` that will own the
             // arena (`build_tree_sampling`), which lends its nodes out by reference.
-            children: unsafe { self.pairs.push(pairs, [l, r]) },
+            children: unsafe { self.pairs.push(cursor, [l, r]) },
         }
     }
 
@@ -1358,8 +1361,8 @@ fn count_on_axis<const AXIS: usize>(src: &[PrimRef], p: Plane) -> (usize, BBox, 
 /// Returns the left count and the centroid bounds.
 ///
 /// Serial: [`partition_kernel`] over the whole node. In parallel (nodes of at least
-/// `parallel_from`, [`parallel_partition_from`] in a build, and of [`PARALLEL_NODE`],
-/// with more than one thread): chunks count their sides first, then
+/// `parallel_from`: [`parallel_partition_from`] in a build, never below
+/// [`PARALLEL_NODE`], with more than one thread): chunks count their sides first, then
 /// each writes its part of both sides with the same kernel, to the same places the
 /// serial loop would.
 ///
@@ -1394,7 +1397,7 @@ fn partition(
     );
     let scale = bin_scale(cb, s.bins);
     let n = src.len();
-    if n >= parallel_from.max(PARALLEL_NODE) && rayon::current_num_threads() > 1 {
+    if n >= parallel_from && rayon::current_num_threads() > 1 {
         return partition_parallel(src, dst, cb.min, scale, s);
     }
     let p = Plane::new(cb.min, scale, s);

@@ -261,9 +261,9 @@ where
             leaf_call: false,
         };
         // The build tree (one arena of child pairs: `accel::build_arena`) is freed while
-        // the shape walk runs, so
-        // `build_ms` now counts its drop (it ended the build before, after `build_ms`
-        // was taken; `bench`'s build ms, timed around the call, counted it already).
+        // the shape walk runs, so `build_ms` counts its drop (it ended the build before,
+        // after `build_ms` was taken; `bench`'s build ms, timed around the call, counted
+        // it already).
         let ((leaf_count, depth, sah, stack_need), ()) =
             rayon::join(|| bvh.shape(root_area), || drop(tree));
         assert!(
