@@ -185,13 +185,21 @@ impl RenderJob {
         let products = budget::validate_sample_products(&scene, &opts)?;
         let estimate = budget::peak_buffer_bytes(self.integrator, &products, &opts, threads);
         budget::check_memory(estimate, budget::available_memory(), self.integrator)?;
+        // The film taken now, its pages mapped, so that a machine without the memory
+        // fails here and the render writes into memory it already has
+        // (`Film::committed`).
+        let t = Instant::now();
+        let region = opts.region();
+        let film = crate::film::Film::committed(region.width(), region.height())?;
+        time.film = ms_since(t);
+        faults.film = faults_lap();
 
         let t = Instant::now();
         let accel = SceneAccel::build(&scene, self.accel);
         time.build = ms_since(t);
         faults.build = faults_lap();
 
-        let out = self.integrator.render(&scene, &accel, &opts);
+        let out = self.integrator.render_into(&scene, &accel, &opts, film);
         time.render = out.render_ms;
         faults.render = faults_lap();
 
@@ -431,8 +439,9 @@ impl RenderReport {
             self.rays.total
         );
         s += &format!(
-            "time     load {:.1} ms, build {:.1} ms, render {:.1} ms, write {:.1} ms; total {:.1} ms\n",
+            "time     load {:.1} ms, film {:.1} ms, build {:.1} ms, render {:.1} ms, write {:.1} ms; total {:.1} ms\n",
             t.load,
+            t.film,
             t.build,
             t.render,
             t.write,
@@ -440,8 +449,8 @@ impl RenderReport {
         );
         let f = &self.page_faults;
         s += &format!(
-            "faults   load {}, build {}, render {}, write {} (pages the process mapped)\n",
-            f.load, f.build, f.render, f.write
+            "faults   load {}, film {}, build {}, render {}, write {} (pages the process mapped)\n",
+            f.load, f.film, f.build, f.render, f.write
         );
         if let Some(st) = &self.stages_ms {
             let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));

@@ -161,6 +161,8 @@ impl AddAssign for StageTimes {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct PhaseTimes {
     pub load: f64,
+    /// The film's memory taken and mapped before any work (`Film::committed`).
+    pub film: f64,
     pub build: f64,
     pub render: f64,
     pub write: f64,
@@ -168,7 +170,7 @@ pub struct PhaseTimes {
 
 impl PhaseTimes {
     pub fn total(&self) -> f64 {
-        self.load + self.build + self.render + self.write
+        self.load + self.film + self.build + self.render + self.write
     }
 }
 
@@ -179,6 +181,7 @@ impl PhaseTimes {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct PhaseFaults {
     pub load: u64,
+    pub film: u64,
     pub build: u64,
     pub render: u64,
     pub write: u64,

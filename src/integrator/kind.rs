@@ -2,6 +2,7 @@
 
 use super::{RenderOptions, RenderOutput, recursive, sampling, wavefront};
 use crate::error::{Error, Result};
+use crate::film::Film;
 use crate::scene::Scene;
 
 /// Which integrator renders.
@@ -36,6 +37,22 @@ impl IntegratorKind {
         match self {
             IntegratorKind::Whitted => recursive::render(scene, accel, opts),
             IntegratorKind::Wavefront => wavefront::render(scene, accel, opts),
+        }
+    }
+
+    /// [`IntegratorKind::render`] into `film`, made before the render with its memory
+    /// mapped ([`Film::committed`]); it must be the size of the region
+    /// (`opts.region()`).
+    pub fn render_into(
+        self,
+        scene: &Scene,
+        accel: &crate::accel::SceneAccel,
+        opts: &RenderOptions,
+        film: Film,
+    ) -> RenderOutput {
+        match self {
+            IntegratorKind::Whitted => recursive::render_into(scene, accel, opts, film),
+            IntegratorKind::Wavefront => wavefront::render_into(scene, accel, opts, film),
         }
     }
 }

@@ -42,7 +42,7 @@ use super::shadow::ShadowFilter;
 use super::tiles::{Tile, TileResult, render_tiles};
 use super::{RenderOptions, RenderOutput, texturing};
 use crate::accel::SceneAccel;
-use crate::film::PixelSums;
+use crate::film::{Film, PixelSums};
 use crate::geometry::Ray;
 use crate::scene::Scene;
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes};
@@ -52,10 +52,36 @@ use rayon::prelude::*;
 /// Renders `scene` with the structure `accel`. `opts` must pass
 /// [`RenderOptions::validate`]; parallelism is whatever rayon pool the caller runs in.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
+    render_film(scene, accel, opts, None)
+}
+
+/// [`render`] into `film`, made before the render with its memory mapped
+/// ([`Film::committed`]); it must be the size of the region (`opts.region()`).
+pub fn render_into(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    film: Film,
+) -> RenderOutput {
+    render_film(scene, accel, opts, Some(film))
+}
+
+fn render_film(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    film: Option<Film>,
+) -> RenderOutput {
     let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
-    let mut out = render_tiles(scene, opts, Workspace::default, |ws, camera, tile, out| {
-        render_tile(scene, accel, opts, filter.as_ref(), camera, ws, (tile, out))
-    });
+    let mut out = render_tiles(
+        scene,
+        opts,
+        film,
+        Workspace::default,
+        |ws, camera, tile, out| {
+            render_tile(scene, accel, opts, filter.as_ref(), camera, ws, (tile, out))
+        },
+    );
     out.stages_ms = None;
     out
 }

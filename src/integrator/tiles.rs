@@ -73,6 +73,11 @@ pub(crate) struct TileResult {
 /// and, with `opts.keep_sums`, its filter sums into the worker's buffer, which are
 /// encoded for a partial image ([`crate::film::partial`]). Shared by both integrators.
 ///
+/// The film is `committed` when the caller made it before the render, its memory
+/// mapped ([`Film::committed`], as the CLI does), and must then be the region's size;
+/// otherwise a fresh [`Film::new`], each band's pages mapped by the band's task before
+/// its tiles write them (the `film` stage).
+///
 /// The film is cut into bands of `TILE` rows, one parallel task each; a band cuts its
 /// rows at the tile edges and renders its tiles in parallel, each tile owning its row
 /// spans. So all the work of the render phase runs in the tiles: the frame is not
@@ -99,6 +104,7 @@ pub(crate) struct TileResult {
 pub(crate) fn render_tiles<W: Send>(
     scene: &Scene,
     opts: &RenderOptions,
+    committed: Option<Film>,
     init: impl Fn() -> W + Sync + Send,
     tile_fn: impl Fn(&mut W, &CameraSampler, Tile, &mut TileOut) -> TileResult + Sync + Send,
 ) -> RenderOutput {
@@ -110,7 +116,20 @@ pub(crate) fn render_tiles<W: Send>(
     let total = tiles_x as u64 * height.div_ceil(TILE) as u64;
     let done = AtomicU64::new(0);
     let keep = opts.keep_sums;
-    let mut film = Film::new(width, height);
+    // A film committed by the caller ([`Film::committed`]) has its pages mapped
+    // already; a fresh one has its bands mapped by the tiles below.
+    let fresh = committed.is_none();
+    let mut film = match committed {
+        Some(film) => {
+            assert_eq!(
+                (film.width, film.height),
+                (width, height),
+                "a committed film the size of the render's region"
+            );
+            film
+        }
+        None => Film::new(width, height),
+    };
     let workers = PerWorker::new(rayon::current_num_threads());
     let row = (width as usize).max(1);
     let setup = ms_since(start);
@@ -124,7 +143,9 @@ pub(crate) fn render_tiles<W: Send>(
             // The band's pages mapped in one call, not one fault per page as its tiles
             // copy their rows in (`pages::populate_for_writing`); counted as `film`.
             let t = Instant::now();
-            populate_for_writing(band);
+            if fresh {
+                populate_for_writing(band);
+            }
             let populate = ms_since(t);
             let y0 = region.y0 + ty as u32 * TILE;
             let rows = band.len() / row;
@@ -342,7 +363,7 @@ mod tests {
     }
 
     /// Regions that are and are not whole tiles, cropped or not, with and without
-    /// kept sums, on 1, 2 and 3 threads: every pixel lands at its place in the film
+    /// kept sums, into a fresh film or one committed before, on 1, 2 and 3 threads: every pixel lands at its place in the film
     /// (row-major over the region), the kept sums come row-major too, the tiles'
     /// counts and stage times add up, and each worker thread makes one scratch value
     /// (the old `map_init` made one per rayon job: 16-18 per frame on 2 threads).
@@ -361,15 +382,22 @@ mod tests {
                 (1, 1, None),
                 (50, 40, Some((3, 45, 17, 39))),
             ] {
-                for keep in [false, true] {
+                for (keep, committed) in
+                    [(false, false), (true, false), (false, true), (true, true)]
+                {
                     let mut opts = RenderOptions::from_scene(&scene);
                     (opts.width, opts.height, opts.keep_sums) = (w, h, keep);
                     opts.crop = crop.map(|(x0, x1, y0, y1)| PixelBounds { x0, x1, y0, y1 });
                     let inits = AtomicUsize::new(0);
                     let out = pool.install(|| {
+                        let region = opts.region();
+                        let film = committed.then(|| {
+                            Film::committed(region.width(), region.height()).expect("film")
+                        });
                         render_tiles(
                             &scene,
                             &opts,
+                            film,
                             || {
                                 inits.fetch_add(1, Ordering::Relaxed);
                             },
@@ -404,7 +432,9 @@ mod tests {
                     });
                     let region = opts.region();
                     let (rw, rh) = (region.width(), region.height());
-                    let case = format!("{w}x{h} crop {crop:?} keep {keep}, {threads} threads");
+                    let case = format!(
+                        "{w}x{h} crop {crop:?} keep {keep} committed {committed}, {threads} threads"
+                    );
                     assert_eq!((out.film.width, out.film.height), (rw, rh), "{case}");
                     let mut want_sums = Vec::new();
                     for y in region.y0..region.y1 {
@@ -433,6 +463,6 @@ mod tests {
                 }
             }
         }
-        assert_eq!(cases, 3 * 4 * 2);
+        assert_eq!(cases, 3 * 4 * 4);
     }
 }

@@ -51,6 +51,7 @@ use super::shadow::{ShadowFilter, ShadowScratch};
 use super::tiles::{Tile, TileResult, render_tiles};
 use super::tiny_shadow::LaneOccluders;
 use crate::accel::{BatchScratch, Occluder, SceneAccel, SceneHit};
+use crate::film::Film;
 use crate::geometry::Ray;
 use crate::scene::{Light, Scene};
 use crate::stats::{EffectSamplesDrawn, RayCounts, StageTimes};
@@ -61,6 +62,26 @@ use std::time::Instant;
 /// [`recursive::render`](super::recursive::render), and the same image up to float
 /// summation order.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
+    render_film(scene, accel, opts, None)
+}
+
+/// [`render`] into `film`, made before the render with its memory mapped
+/// ([`Film::committed`]); it must be the size of the region (`opts.region()`).
+pub fn render_into(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    film: Film,
+) -> RenderOutput {
+    render_film(scene, accel, opts, Some(film))
+}
+
+fn render_film(
+    scene: &Scene,
+    accel: &SceneAccel,
+    opts: &RenderOptions,
+    film: Option<Film>,
+) -> RenderOutput {
     let pipeline = Pipeline::new(scene, opts);
     let filter = ShadowFilter::new(scene, opts.transmitted_shadows, accel.kind);
     // In a tiny scene the quad lights' samples are settled where they are generated
@@ -74,6 +95,7 @@ pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> Render
     render_tiles(
         scene,
         opts,
+        film,
         || Workspace::new(&pipeline, scene),
         |ws, camera, tile, out| {
             let stage = (&pipeline, lanes.as_ref(), filter.as_ref());

@@ -12,4 +12,4 @@ pub(crate) use array::MAPPED_MIN_BYTES;
 #[cfg(all(test, target_os = "linux"))]
 pub(crate) use huge::vm_flags_at;
 pub(crate) use huge::{ALWAYS_MAPPED_BYTES, advise_huge_pages};
-pub(crate) use populate::populate_for_writing;
+pub(crate) use populate::{commit_for_writing, populate_for_writing};

@@ -28,21 +28,31 @@
 /// writes that follow take no page fault. Contents are unchanged (the kernel only
 /// allocates what is not yet mapped, zero-filled as a write fault would). Returns
 /// whether the call succeeded: `false` on kernels before Linux 5.14, on other systems,
-/// and for an empty span, where nothing is done and the writes fault as before.
+/// for an empty span, and when the memory cannot be had, where nothing is done and
+/// the writes fault as before.
 pub(crate) fn populate_for_writing<T>(span: &mut [T]) -> bool {
+    matches!(commit_for_writing(span), Ok(true))
+}
+
+/// [`populate_for_writing`] that tells why it did nothing: `Ok(true)` when every page
+/// is mapped now, `Ok(false)` where the system cannot map ahead (kernels before Linux
+/// 5.14 answer `EINVAL`, other systems have no such call, an empty span has no
+/// pages), and the error where the kernel could not give the memory (`ENOMEM`): a
+/// caller that commits memory before any work can refuse the work then.
+pub(crate) fn commit_for_writing<T>(span: &mut [T]) -> std::io::Result<bool> {
     let bytes = std::mem::size_of_val(span);
     if bytes == 0 {
-        return false;
+        return Ok(false);
     }
     populate(span.as_mut_ptr().cast(), bytes)
 }
 
 #[cfg(target_os = "linux")]
-fn populate(start: *mut u8, bytes: usize) -> bool {
+fn populate(start: *mut u8, bytes: usize) -> std::io::Result<bool> {
     // SAFETY: `sysconf` has no preconditions.
     let page = match unsafe { libc::sysconf(libc::_SC_PAGESIZE) } {
         p if p > 0 => p as usize,
-        _ => return false,
+        _ => return Ok(false),
     };
     // The pages `start..start + bytes` lies in: the first and last may be shared with
     // neighbouring memory of the same mapping, which is already mapped or is mapped
@@ -53,18 +63,26 @@ fn populate(start: *mut u8, bytes: usize) -> bool {
     // write fault would, zero-filled or as they are), and the range lies in pages of
     // the mapping that holds `span`; on a range it cannot populate it fails with an
     // error and does nothing harmful.
-    unsafe {
+    let rc = unsafe {
         libc::madvise(
             first as *mut libc::c_void,
             end - first,
             libc::MADV_POPULATE_WRITE,
-        ) == 0
+        )
+    };
+    if rc == 0 {
+        return Ok(true);
+    }
+    let err = std::io::Error::last_os_error();
+    match err.raw_os_error() {
+        Some(libc::EINVAL) | Some(libc::ENOSYS) => Ok(false),
+        _ => Err(err),
     }
 }
 
 #[cfg(not(target_os = "linux"))]
-fn populate(_start: *mut u8, _bytes: usize) -> bool {
-    false
+fn populate(_start: *mut u8, _bytes: usize) -> std::io::Result<bool> {
+    Ok(false)
 }
 
 #[cfg(all(test, target_os = "linux"))]
@@ -110,16 +128,16 @@ mod tests {
         let (from, to) = (3 * page + 40, 9 * page + 200);
         // SAFETY: inside the mapping, u8 has no invalid values.
         let span = unsafe { std::slice::from_raw_parts_mut(base.add(from), to - from) };
-        if !populate_for_writing(span) {
+        let committed = commit_for_writing(span);
+        if let Ok(false) = committed {
             // Kernels before Linux 5.14 reject the advice with EINVAL: the renderer
             // then takes the page faults as before, and there is nothing to check.
-            let err = std::io::Error::last_os_error();
             // SAFETY: the mapping made above.
             unsafe { libc::munmap(base.cast(), pages * page) };
-            assert_eq!(err.raw_os_error(), Some(libc::EINVAL), "madvise: {err}");
-            eprintln!("skipped: this kernel has no MADV_POPULATE_WRITE ({err})");
+            eprintln!("skipped: this kernel has no MADV_POPULATE_WRITE");
             return;
         }
+        assert!(committed.expect("madvise"), "span mapped");
         let now = resident(base, pages, page);
         for (p, r) in now.iter().enumerate() {
             assert_eq!(*r, (3..=9).contains(&p), "page {p}");
@@ -133,5 +151,6 @@ mod tests {
         unsafe { libc::munmap(base.cast(), pages * page) };
         let mut empty: [u32; 0] = [];
         assert!(!populate_for_writing(&mut empty));
+        assert!(!commit_for_writing(&mut empty).expect("nothing to map"));
     }
 }

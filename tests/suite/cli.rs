@@ -47,7 +47,7 @@ fn renders_a_shipped_scene_with_stats() {
         rays["refraction"].as_u64().unwrap() > 0,
         "the Whitted room has glass"
     );
-    for phase in ["load", "build", "render", "write"] {
+    for phase in ["load", "film", "build", "render", "write"] {
         assert!(
             s["time_ms"][phase].as_f64().unwrap() >= 0.0,
             "time_ms.{phase}"
@@ -55,7 +55,7 @@ fn renders_a_shipped_scene_with_stats() {
     }
     // Page faults by phase: counted on Linux (a render maps fresh memory in some
     // phase), present as counts everywhere.
-    let faults: Vec<u64> = ["load", "build", "render", "write"]
+    let faults: Vec<u64> = ["load", "film", "build", "render", "write"]
         .iter()
         .map(|p| s["page_faults"][p].as_u64().expect("page_faults.{p}"))
         .collect();
