@@ -57,23 +57,31 @@ impl Film {
     /// render threads start and outside the "Trace Time" it reports.
     pub fn committed(width: u32, height: u32) -> Result<Self> {
         use rayon::prelude::*;
-        let mut film = Film::new(width, height);
+        let refused = |why: String| {
+            let mib = (film_bytes(width, height) as f64) / f64::from(1 << 20);
+            Error::parameter(
+                "memory",
+                format!(
+                    "the {width}x{height} film needs {mib:.1} MiB, which the system cannot \
+                     give now ({why}): render a smaller image, or in parts (--crop, --tile)"
+                ),
+            )
+        };
+        // The allocation itself may fail too (an address-space limit, a heuristic
+        // overcommit that refuses it): an error here, not `Film::new`'s abort.
+        let mut pixels = try_zeroed_pixels(width as usize * height as usize)
+            .map_err(|_| refused("the allocation failed".into()))?;
         // Chunks of 2 MiB: a huge page each where the frame got them.
         const CHUNK: usize = (2 << 20) / std::mem::size_of::<Vec3>();
-        film.pixels
+        pixels
             .par_chunks_mut(CHUNK)
             .try_for_each(|c| commit_for_writing(c).map(|_| ()))
-            .map_err(|e| {
-                let mib = (film_bytes(width, height) as f64) / f64::from(1 << 20);
-                Error::parameter(
-                    "memory",
-                    format!(
-                        "the {width}x{height} film needs {mib:.1} MiB, which the system \
-                         cannot give now: {e}"
-                    ),
-                )
-            })?;
-        Ok(film)
+            .map_err(|e| refused(e.to_string()))?;
+        Ok(Film {
+            width,
+            height,
+            pixels,
+        })
     }
 
     pub fn get(&self, x: u32, y: u32) -> Vec3 {
@@ -165,23 +173,29 @@ fn film_bytes(width: u32, height: u32) -> usize {
     width as usize * height as usize * std::mem::size_of::<Vec3>()
 }
 
-/// `n` black pixels, allocated zeroed rather than filled.
+/// `n` black pixels, allocated zeroed rather than filled; aborts where the memory
+/// cannot be had (as `Vec` does).
 fn zeroed_pixels(n: usize) -> Vec<Vec3> {
+    try_zeroed_pixels(n).unwrap_or_else(|layout| std::alloc::handle_alloc_error(layout))
+}
+
+/// [`zeroed_pixels`], or the layout the allocator refused.
+fn try_zeroed_pixels(n: usize) -> std::result::Result<Vec<Vec3>, std::alloc::Layout> {
     if n == 0 {
-        return Vec::new();
+        return Ok(Vec::new());
     }
     let layout = std::alloc::Layout::array::<Vec3>(n).expect("pixel array size");
     // SAFETY: `layout` has a non-zero size (n > 0, Vec3 is 12 bytes).
     let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<Vec3>();
     if ptr.is_null() {
-        std::alloc::handle_alloc_error(layout);
+        return Err(layout);
     }
     // Before the first touch: the whole 2 MiB pages of a large frame as huge pages
     // (measured on `pages::advise_huge_pages`).
     advise_huge_pages(ptr.cast(), layout.size());
     // SAFETY: allocated by the global allocator with the layout of `n` Vec3s (the
     // layout `Vec<Vec3>` frees with), and all-zero bytes are a valid Vec3 (0.0 thrice).
-    unsafe { Vec::from_raw_parts(ptr, n, n) }
+    Ok(unsafe { Vec::from_raw_parts(ptr, n, n) })
 }
 
 #[cfg(test)]

@@ -134,6 +134,45 @@ fn assert_fails(args: &[&str], out: &Path, expect: &str) {
     }));
 }
 
+/// A frame whose film the process cannot have (10.8 GB under a 3 GB address-space
+/// limit) is refused before any work with an error, not the allocator's abort; where
+/// the machine's available memory is below the buffers' estimate, the budget check
+/// refuses it first, with its own message.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_film_too_large_for_memory_is_an_error() {
+    let dir = temp_dir("bigfilm");
+    let out = dir.join("never.png");
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 3000000 && exec \"$0\" \"$@\"")
+        .arg(bin().get_program())
+        .args([
+            "render",
+            &scene("cornell.toml"),
+            "--width",
+            "30000",
+            "--height",
+            "30000",
+        ])
+        .args(["--threads", "2", "--quiet", "-o", out.to_str().unwrap()])
+        .output()
+        .expect("sh runs");
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.starts_with("error: invalid ")
+            && (e.contains("the 30000x30000 film needs 10299.7 MiB")
+                || e.contains("buffers would need")),
+        "{e}"
+    );
+    assert!(
+        !e.contains("panicked") && !e.contains("memory allocation"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
 #[test]
 fn bad_input_gives_located_errors_and_writes_nothing() {
     let dir = temp_dir("bad");
