@@ -363,7 +363,8 @@ mod tests {
     }
 
     /// Regions that are and are not whole tiles, cropped or not, with and without
-    /// kept sums, into a fresh film or one committed before, on 1, 2 and 3 threads: every pixel lands at its place in the film
+    /// kept sums, into a fresh film or one committed before (whose own pixels are
+    /// written), on 1, 2 and 3 threads: every pixel lands at its place in the film
     /// (row-major over the region), the kept sums come row-major too, the tiles'
     /// counts and stage times add up, and each worker thread makes one scratch value
     /// (the old `map_init` made one per rayon job: 16-18 per frame on 2 threads).
@@ -389,11 +390,14 @@ mod tests {
                     (opts.width, opts.height, opts.keep_sums) = (w, h, keep);
                     opts.crop = crop.map(|(x0, x1, y0, y1)| PixelBounds { x0, x1, y0, y1 });
                     let inits = AtomicUsize::new(0);
+                    let region = opts.region();
+                    let film = committed.then(|| {
+                        pool.install(|| Film::committed(region.width(), region.height()))
+                            .expect("film")
+                    });
+                    // The committed film's own pixels come back, written in place.
+                    let given = film.as_ref().map(|f| f.pixels.as_ptr());
                     let out = pool.install(|| {
-                        let region = opts.region();
-                        let film = committed.then(|| {
-                            Film::committed(region.width(), region.height()).expect("film")
-                        });
                         render_tiles(
                             &scene,
                             &opts,
@@ -430,12 +434,14 @@ mod tests {
                             },
                         )
                     });
-                    let region = opts.region();
                     let (rw, rh) = (region.width(), region.height());
                     let case = format!(
                         "{w}x{h} crop {crop:?} keep {keep} committed {committed}, {threads} threads"
                     );
                     assert_eq!((out.film.width, out.film.height), (rw, rh), "{case}");
+                    if let Some(p) = given {
+                        assert_eq!(out.film.pixels.as_ptr(), p, "{case}");
+                    }
                     let mut want_sums = Vec::new();
                     for y in region.y0..region.y1 {
                         for x in region.x0..region.x1 {
