@@ -52,9 +52,11 @@ impl Film {
     /// 1024x768), and its first touch is the part of a render that moves with the
     /// virtual machine's host, not with the work (fresh pages 1-40 us each to back).
     /// POV-Ray, our anchor, does the same: 4,589 of its 6,317 page faults on
-    /// whitted 1024x768 at 2 threads (`perf record -e page-faults -c 1 -g`), an 18 MB
-    /// `memset` of its image, fall on its main thread in its first 0.15 s, before its
-    /// render threads start and outside the "Trace Time" it reports.
+    /// whitted 1024x768 at 2 threads (`perf record -e page-faults -c 1 -g`) fall on
+    /// its main thread in its first 0.15 s, before its render threads start and outside
+    /// the "Trace Time" it reports; most of them in a `memset` that grows with the
+    /// pixel count, 20 bytes a pixel (its image: 1,619 / 4,499 / 16,022 pages at
+    /// 512x384 / 1024x768 / 2048x1536).
     pub fn committed(width: u32, height: u32) -> Result<Self> {
         use rayon::prelude::*;
         let refused = |why: String| {
