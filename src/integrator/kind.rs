@@ -51,8 +51,8 @@ impl IntegratorKind {
         film: Film,
     ) -> RenderOutput {
         match self {
-            IntegratorKind::Whitted => recursive::render_into(scene, accel, opts, film),
-            IntegratorKind::Wavefront => wavefront::render_into(scene, accel, opts, film),
+            IntegratorKind::Whitted => recursive::render_with(scene, accel, opts, Some(film)),
+            IntegratorKind::Wavefront => wavefront::render_with(scene, accel, opts, Some(film)),
         }
     }
 }

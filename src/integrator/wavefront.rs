@@ -62,21 +62,13 @@ use std::time::Instant;
 /// [`recursive::render`](super::recursive::render), and the same image up to float
 /// summation order.
 pub fn render(scene: &Scene, accel: &SceneAccel, opts: &RenderOptions) -> RenderOutput {
-    render_film(scene, accel, opts, None)
+    render_with(scene, accel, opts, None)
 }
 
-/// [`render`] into `film`, made before the render with its memory mapped
-/// ([`Film::committed`]); it must be the size of the region (`opts.region()`).
-pub fn render_into(
-    scene: &Scene,
-    accel: &SceneAccel,
-    opts: &RenderOptions,
-    film: Film,
-) -> RenderOutput {
-    render_film(scene, accel, opts, Some(film))
-}
-
-fn render_film(
+/// [`render`] into `film` where one is given: made before the render with its memory
+/// mapped ([`Film::committed`]), the size of the region (`opts.region()`). `None`
+/// renders into a fresh film, as [`render`] does.
+pub fn render_with(
     scene: &Scene,
     accel: &SceneAccel,
     opts: &RenderOptions,
