@@ -670,7 +670,7 @@ fn build_tree_sampling<P: Primitives>(
     // SAFETY: the capacity is `n` (`with_capacity`'s guarantee) and the loop above
     // wrote each of the first `n` slots.
     unsafe { refs.set_len(n) };
-    let mut ids = vec![0u32; n];
+    let mut ids = zeroed_ids(n);
     if n == 0 {
         return (None, ids, SpareRefs(refs));
     }
@@ -759,6 +759,31 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
     advise_huge_pages(ptr.cast(), layout.size());
     // SAFETY: allocated by the global allocator with the layout of `n` PrimRefs, and
     // all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
+    unsafe { Vec::from_raw_parts(ptr, n, n) }
+}
+
+/// `n` zeroed primitive indices (the build's output order), advised for huge pages
+/// before their first touch as the reference arrays are ([`zeroed_refs`]).
+///
+/// Why (issue 12, helper bc28, session 28): as `vec![0u32; n]` the array (40 MB at
+/// 10^7, a fresh mapping from glibc in every build) was faulted in 4 KiB at a time by
+/// the leaves' writes, ~9,800 faults per 10^7 build, most of the ~7,500-10,000 that
+/// `examples/build_time 10000000 3 2` counted per build (`perf record -e page-faults`:
+/// the leaf closure of `Builder::build` and the arena's chunks, `accel::build_arena`);
+/// in the host's slow state a fresh 4 KiB page costs 5-40 us to touch.
+fn zeroed_ids(n: usize) -> Vec<u32> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let layout = std::alloc::Layout::array::<u32>(n).expect("index array size");
+    // SAFETY: `layout` has a non-zero size (n > 0).
+    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<u32>();
+    if ptr.is_null() {
+        std::alloc::handle_alloc_error(layout);
+    }
+    advise_huge_pages(ptr.cast(), layout.size());
+    // SAFETY: allocated by the global allocator with the layout of `n` u32s (a `Vec`'s
+    // buffer of capacity `n`), all zero.
     unsafe { Vec::from_raw_parts(ptr, n, n) }
 }
 
@@ -2123,6 +2148,14 @@ mod tests {
             let v = zeroed_refs(n);
             assert_eq!(v.len(), n);
             assert!(bits(&v).iter().all(|&b| b == 0), "{n} references");
+        }
+        for n in [0, 1, 1000, (4 << 20) / 4 + 3, RECYCLE_MIN_BYTES / 4 + 3] {
+            let mut v = zeroed_ids(n);
+            assert_eq!((v.len(), v.capacity()), (n, n));
+            assert!(v.iter().all(|&i| i == 0), "{n} indices");
+            // A `Vec` of the global allocator: it grows and frees as one.
+            v.push(7);
+            assert_eq!(v[n], 7);
         }
     }
 
