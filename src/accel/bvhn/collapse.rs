@@ -105,7 +105,20 @@ impl<const N: usize> Collapse<'_, N> {
     /// (two huge pages written in each; only four dropped mappings are kept,
     /// `pages::array::KEEP`) and a fresh 214 MB final node array (the kept slots were
     /// taken by the task arrays when the previous tree was dropped), then 214 MB
-    /// copied.
+    /// copied. The counting walk costs ~60 ms of the two threads at 10^7 (perf); the
+    /// collapse phase went from 0.6 to 0.35 s.
+    ///
+    /// Measured with the session's other page changes (the ids array advised, the
+    /// arena's chunks kept, the smaller scratch array advised before it is zeroed;
+    /// issue 12, bc28, session 28, AVX-512, interleaved against /tmp/base28, CPU ms
+    /// per build, min / median / max of the rounds' medians): `build_time 10000000 3 2`
+    /// quiet (load 1.6-2.0, 10 rounds) 3,258 / 3,524 / 3,767 -> 3,240 / 3,590 / 3,684,
+    /// level (wall 1,816 -> 1,848 ms median), but under load (3.1-3.8, 4 rounds, one
+    /// core for the build) 3,210 / 3,434 / 3,518 -> 3,115 / 3,205 / 3,378, and page
+    /// faults per build 6.3-11k -> 1.1-2.1k (the slow host state makes each 5-40 us);
+    /// `build_time 1000000 5 2` (3 rounds, load 1.6) 308 / 310 / 313 -> 285 / 286 / 287,
+    /// wall 166 -> 149 ms; `build_time 1000000 5 1` 277 / 287 / 287 -> 250 / 256 / 262;
+    /// `build_time 100000 20 2` 21.6 / 21.9 / 22.0 -> 20.7 / 21.4 / 21.6.
     fn collapse_parallel(
         &mut self,
         node: &BuildNode,
