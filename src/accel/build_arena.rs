@@ -35,8 +35,19 @@
 //! 3,509 / 3,530; `build_time 1000000 7 1` 342 / 333 against 338 / 337; `build_time
 //! 1000000 7 2` 188 / 178 against 178 / 161; a 10^6 build at 1 thread in a fresh process
 //! 409 / 379 / 561 / 387 against 365 / 347 / 410 / 361 ms.
+//!
+//! Kept between builds (issue 12, helper bc28, session 28): a chunk of 4 MiB and more is
+//! a `pages::LargeVec`'s room (a 2 MiB-aligned mapping advised for huge pages), whose
+//! mapping goes back to `pages::array`'s kept list when the arena drops it, for the
+//! next build's chunks. The heap chunks had been faulted in largely 4 KiB at a time
+//! all the same (`perf record -e page-faults -c 1` of `build_time 10000000 1 2`:
+//! ~11,000 faults per 10^7 build in `Arena::push`; chunks made 2 MiB-aligned with the
+//! heap's `memalign` changed nothing, 23.0k -> 22.5k over two builds, so the cause is
+//! glibc's per-thread heaps, not the chunks' edges). With the kept mappings:
+//! page faults per 10^7 2-thread build 6-10k -> 1.1-2.1k (with the `ids` array advised,
+//! `sah_build::zeroed_ids`).
 
-use crate::pages::advise_huge_pages;
+use crate::pages::{LargeVec, advise_huge_pages};
 use std::alloc::Layout;
 use std::marker::PhantomData;
 use std::mem::MaybeUninit;
@@ -60,9 +71,15 @@ pub(super) struct Arena<T> {
     _owns: PhantomData<T>,
 }
 
+/// The unit a chunk's memory is counted in: 16 bytes, aligned as the builder's nodes.
+#[derive(Clone, Copy)]
+#[repr(C, align(16))]
+struct Unit([u8; 16]);
+
 struct Chunks<T> {
-    /// Every chunk allocated, with its slot count.
-    list: Vec<(NonNull<MaybeUninit<T>>, usize)>,
+    /// Every chunk allocated (its values are in the spare room of a `LargeVec`, which
+    /// never holds any value of its own: nothing is read through it).
+    list: Vec<LargeVec<Unit>>,
     /// The first unclaimed slot of the last chunk, and its end.
     next: *mut MaybeUninit<T>,
     end: *mut MaybeUninit<T>,
@@ -167,15 +184,22 @@ impl<T> Arena<T> {
         // `next` and `end` lie in the same chunk, `next <= end` (or both are null).
         let left = (c.end as usize - c.next as usize) / size_of::<T>();
         if left < BLOCK {
-            let layout = Layout::array::<T>(self.chunk_values).expect("arena chunk size");
-            // SAFETY: `layout` has a non-zero size (at least BLOCK values, T not
-            // zero-sized).
-            let ptr = unsafe { std::alloc::alloc(layout) }.cast::<MaybeUninit<T>>();
-            let Some(chunk) = NonNull::new(ptr) else {
-                std::alloc::handle_alloc_error(layout)
-            };
-            advise_huge_pages(ptr.cast(), layout.size());
-            c.list.push((chunk, self.chunk_values));
+            const { assert!(align_of::<T>() <= align_of::<Unit>()) };
+            let bytes = Layout::array::<T>(self.chunk_values)
+                .expect("arena chunk size")
+                .size();
+            // From 4 MiB a huge-page mapping of its own, kept for the next build's
+            // chunks when this arena drops it (`pages::LargeVec`); smaller ones on the
+            // heap.
+            let mut chunk = LargeVec::<Unit>::with_capacity(bytes.div_ceil(size_of::<Unit>()));
+            if !chunk.is_mapped() {
+                advise_huge_pages(chunk.spare_capacity_mut().as_mut_ptr().cast(), bytes);
+            }
+            let ptr = chunk
+                .spare_capacity_mut()
+                .as_mut_ptr()
+                .cast::<MaybeUninit<T>>();
+            c.list.push(chunk);
             c.next = ptr;
             // SAFETY: one past the chunk's last slot.
             c.end = unsafe { ptr.add(self.chunk_values) };
@@ -190,17 +214,6 @@ impl<T> Arena<T> {
     #[cfg(test)]
     fn chunk_count(&self) -> usize {
         self.chunks.lock().map_or(0, |c| c.list.len())
-    }
-}
-
-impl<T> Drop for Arena<T> {
-    fn drop(&mut self) {
-        let c = self.chunks.get_mut().unwrap_or_else(|e| e.into_inner());
-        for &(ptr, values) in &c.list {
-            let layout = Layout::array::<T>(values).expect("arena chunk size");
-            // SAFETY: allocated in `claim` with this layout; `T` needs no drop.
-            unsafe { std::alloc::dealloc(ptr.as_ptr().cast(), layout) };
-        }
     }
 }
 

@@ -670,7 +670,7 @@ fn build_tree_sampling<P: Primitives>(
     // SAFETY: the capacity is `n` (`with_capacity`'s guarantee) and the loop above
     // wrote each of the first `n` slots.
     unsafe { refs.set_len(n) };
-    let mut ids = vec![0u32; n];
+    let mut ids = zeroed_ids(n);
     if n == 0 {
         return (None, ids, SpareRefs(refs));
     }
@@ -751,14 +751,59 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
         return Vec::new();
     }
     let layout = std::alloc::Layout::array::<PrimRef>(n).expect("reference array size");
-    // SAFETY: `layout` has a non-zero size (n > 0, PrimRef is 32 bytes).
-    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<PrimRef>();
+    if layout.size() >= ALWAYS_MAPPED_BYTES {
+        // SAFETY: `layout` has a non-zero size (n > 0, PrimRef is 32 bytes).
+        let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<PrimRef>();
+        if ptr.is_null() {
+            std::alloc::handle_alloc_error(layout);
+        }
+        advise_huge_pages(ptr.cast(), layout.size());
+        // SAFETY: allocated by the global allocator with the layout of `n` PrimRefs,
+        // and all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
+        return unsafe { Vec::from_raw_parts(ptr, n, n) };
+    }
+    // A smaller block may come from the heap, which `calloc` clears with `memset`
+    // before the advice could be given: advised first, then zeroed here (in parallel
+    // chunks). Issue 12, helper bc28, session 28: at 10^6 (32,000,000 bytes, just under
+    // glibc's largest mmap threshold) that `memset` faulted the block in 4 KiB at a
+    // time, ~5,500 of the ~7,800 page faults per build (`perf record -e page-faults`
+    // of `build_time 1000000 3 2`).
+    let mut v = Vec::<PrimRef>::with_capacity(n);
+    advise_huge_pages(v.as_mut_ptr().cast(), layout.size());
+    let zero = PrimRef {
+        min: Vec4::ZERO,
+        max: Vec4::ZERO,
+    };
+    v.spare_capacity_mut()[..n]
+        .par_chunks_mut(PARALLEL_THRESHOLD * 4)
+        .for_each(|c| c.fill(MaybeUninit::new(zero)));
+    // SAFETY: the capacity is at least `n`, and the loop wrote each of the first `n`.
+    unsafe { v.set_len(n) };
+    v
+}
+
+/// `n` zeroed primitive indices (the build's output order), advised for huge pages
+/// before their first touch as the reference arrays are ([`zeroed_refs`]).
+///
+/// Why (issue 12, helper bc28, session 28): as `vec![0u32; n]` the array (40 MB at
+/// 10^7, a fresh mapping from glibc in every build) was faulted in 4 KiB at a time by
+/// the leaves' writes, ~9,800 faults per 10^7 build, most of the ~7,500-10,000 that
+/// `examples/build_time 10000000 3 2` counted per build (`perf record -e page-faults`:
+/// the leaf closure of `Builder::build` and the arena's chunks, `accel::build_arena`);
+/// in the host's slow state a fresh 4 KiB page costs 5-40 us to touch.
+fn zeroed_ids(n: usize) -> Vec<u32> {
+    if n == 0 {
+        return Vec::new();
+    }
+    let layout = std::alloc::Layout::array::<u32>(n).expect("index array size");
+    // SAFETY: `layout` has a non-zero size (n > 0).
+    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<u32>();
     if ptr.is_null() {
         std::alloc::handle_alloc_error(layout);
     }
     advise_huge_pages(ptr.cast(), layout.size());
-    // SAFETY: allocated by the global allocator with the layout of `n` PrimRefs, and
-    // all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
+    // SAFETY: allocated by the global allocator with the layout of `n` u32s (a `Vec`'s
+    // buffer of capacity `n`), all zero.
     unsafe { Vec::from_raw_parts(ptr, n, n) }
 }
 
@@ -2123,6 +2168,14 @@ mod tests {
             let v = zeroed_refs(n);
             assert_eq!(v.len(), n);
             assert!(bits(&v).iter().all(|&b| b == 0), "{n} references");
+        }
+        for n in [0, 1, 1000, (4 << 20) / 4 + 3, RECYCLE_MIN_BYTES / 4 + 3] {
+            let mut v = zeroed_ids(n);
+            assert_eq!((v.len(), v.capacity()), (n, n));
+            assert!(v.iter().all(|&i| i == 0), "{n} indices");
+            // A `Vec` of the global allocator: it grows and frees as one.
+            v.push(7);
+            assert_eq!(v[n], 7);
         }
     }
 

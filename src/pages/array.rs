@@ -344,9 +344,12 @@ fn map_huge(bytes: usize) -> Option<(NonNull<u8>, usize)> {
 static KEPT: std::sync::Mutex<Vec<(usize, usize)>> = std::sync::Mutex::new(Vec::new());
 
 /// How many dropped mappings [`KEPT`] holds: a tree's two arrays, for two trees (a
-/// benchmark's BVH8 and BVH4 alternating).
+/// benchmark's BVH8 and BVH4 alternating), and the 16 MiB chunks of a build's child
+/// pairs (`accel::build_arena`: 16 at 10^7 triangles, 256 MiB, which with the 10^7
+/// tree's node mapping stays under [`KEEP_BYTES`]). It was 4 before the chunks were
+/// kept (issue 12, helper bc28, session 28).
 #[cfg(target_os = "linux")]
-const KEEP: usize = 4;
+const KEEP: usize = 24;
 
 /// The most bytes [`KEPT`] holds, resident after their trees are gone: a 10^7-triangle
 /// tree's node mapping (~210 MB) and two 10^6 trees' arrays (~61 MB each) fit; a library

@@ -2,13 +2,14 @@
 //! first: Wald et al. 2008, "Getting Rid of Packets"), with triangle leaves packed
 //! into groups of four.
 
-use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF, is_leaf};
+use super::node::{BvhNode, COUNT_SHIFT, EMPTY_CHILD, FIRST_MASK, LEAF};
 use crate::accel::Triangles;
 use crate::accel::sah_build::{BuildNode, SpareRefs};
 use crate::pages::LargeVec;
 use crate::simd::kernels::TriGroup4;
 use crate::simd::prefetch::prefetch;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// Levels of the collapse that hand their children's subtrees to separate threads (at
 /// most N^2 tasks): the collapse was 13 % of a serial build (4 of 30 ms on the bunny).
@@ -79,11 +80,12 @@ impl<const N: usize> Collapse<'_, N> {
     /// collapsed by separate tasks, each writing its part of the final arrays.
     ///
     /// The top levels are laid out first ([`Top`], in the serial layout's order: a
-    /// node, then each child's subtree); every subtree below them is one task. The tasks
-    /// run their node passes in parallel into arrays of their own ([`Part`]), which
-    /// gives each one's node and group count; then the final arrays are sized once
-    /// and the tasks, in parallel again, copy their nodes into their range (references
-    /// moved by the range's start) and gather their groups straight into theirs.
+    /// node, then each child's subtree); every subtree below them is one task. A
+    /// first parallel pass counts each task's nodes and groups ([`count`]: the walk of
+    /// the node pass without its writes), which gives each one's first node and first
+    /// group in the final arrays; these are sized once, and the tasks, in parallel
+    /// again, run their node pass straight into their range (references final from
+    /// the start) and gather their groups into theirs.
     ///
     /// Before (issue 12, helper bd25, 2026-11-29): each child's subtree collapsed into
     /// arrays of its own (grown by doubling), and the parts were appended one after
@@ -92,6 +94,31 @@ impl<const N: usize> Collapse<'_, N> {
     /// and the groups' array was sized by a walk of the whole build tree first (the
     /// parallel parts could not count it). Phase timers at 10^6 (`build_time 1000000 5
     /// N`, load ~4): the parallel collapse took 125-134 ms against 69-77 ms serial.
+    ///
+    /// Then (sessions 25-27, until bc28): the tasks' node passes ran into arrays of
+    /// their own (a `LargeVec` with room for a node per four primitives, huge pages
+    /// from 4 MiB), which gave their counts, and each task then copied its nodes into
+    /// its range of the final array, moving every reference by the range's start. At
+    /// 10^7 triangles and 2 threads (`perf record -e cpu-clock` of `build_time
+    /// 10000000 3 2`, quiet host, session 28) the collapse took 0.6 s of a 2.1 s build,
+    /// most of it `clear_page_erms` zeroing fresh pages: 64 task arrays of ~10 MB
+    /// (two huge pages written in each; only four dropped mappings are kept,
+    /// `pages::array::KEEP`) and a fresh 214 MB final node array (the kept slots were
+    /// taken by the task arrays when the previous tree was dropped), then 214 MB
+    /// copied. The counting walk costs ~60 ms of the two threads at 10^7 (perf); the
+    /// collapse phase went from 0.6 to 0.35 s.
+    ///
+    /// Measured with the session's other page changes (the ids array advised, the
+    /// arena's chunks kept, the smaller scratch array advised before it is zeroed;
+    /// issue 12, bc28, session 28, AVX-512, interleaved against /tmp/base28, CPU ms
+    /// per build, min / median / max of the rounds' medians): `build_time 10000000 3 2`
+    /// quiet (load 1.6-2.0, 10 rounds) 3,258 / 3,524 / 3,767 -> 3,240 / 3,590 / 3,684,
+    /// level (wall 1,816 -> 1,848 ms median), but under load (3.1-3.8, 4 rounds, one
+    /// core for the build) 3,210 / 3,434 / 3,518 -> 3,115 / 3,205 / 3,378, and page
+    /// faults per build 6.3-11k -> 1.1-2.1k (the slow host state makes each 5-40 us);
+    /// `build_time 1000000 5 2` (3 rounds, load 1.6) 308 / 310 / 313 -> 285 / 286 / 287,
+    /// wall 166 -> 149 ms; `build_time 1000000 5 1` 277 / 287 / 287 -> 250 / 256 / 262;
+    /// `build_time 100000 20 2` 21.6 / 21.9 / 22.0 -> 20.7 / 21.4 / 21.6.
     fn collapse_parallel(
         &mut self,
         node: &BuildNode,
@@ -101,63 +128,27 @@ impl<const N: usize> Collapse<'_, N> {
         let mut items = Vec::new();
         plan::<N>(node, levels, &mut items);
         let (ids, triangles) = (self.ids, self.triangles);
-        let parts: Vec<Option<Part<N>>> = items
+        let has_groups = triangles.is_some();
+        // Each item's node and group count: one node for a top node, the collapse's
+        // counts for a task's subtree.
+        let counts: Vec<(usize, usize)> = items
             .par_iter()
             .with_max_len(1)
             .map(|item| match item {
-                Top::Node { .. } => None,
-                Top::Task(t) => {
-                    // Room for a node per four primitives, more than a collapse makes
-                    // (82k nodes 8 wide for 10^6 triangles, 4 per leaf): never grown,
-                    // and the room left over is never touched, so never faulted in. In
-                    // a `LargeVec` of its own (huge pages from 4 MiB: a 10^7 task's
-                    // room is ~10 MB) rather than the heap, whose pages were fresh in
-                    // every build (session 27, AVX-512, interleaved, 3 rounds, wall ms
-                    // medians): `build_time 10000000 2 2` 2,250 / 2,308 / 2,373 ->
-                    // 2,147 / 2,075 / 2,010 (page faults per build 78k -> 27k),
-                    // `build_time 1000000 7 2` 181 / 184 / 194 -> 169 / 179 / 167.
-                    let (first, end) = prim_range(t);
-                    let mut c = Collapse::<N> {
-                        ids,
-                        triangles,
-                        nodes: LargeVec::with_capacity(((end - first) as usize).div_ceil(4)),
-                        groups: LargeVec::new(),
-                    };
-                    let mut pending = PendingLeaves::default();
-                    let root = c.collapse_nodes(t, &mut pending);
-                    Some(Part {
-                        nodes: c.nodes,
-                        leaves: pending.leaves,
-                        groups: pending.groups,
-                        root,
-                    })
-                }
+                Top::Node { .. } => (1, 0),
+                Top::Task(t) => count::<N>(t, has_groups),
             })
             .collect();
         // Each item's first node and first group, in layout order.
         let (node_start, group_start) = (self.nodes.len(), self.groups.len());
         let mut bases = Vec::with_capacity(items.len());
         let (mut nb, mut gb) = (node_start, group_start);
-        for part in &parts {
+        for &(nodes, groups) in &counts {
             bases.push((nb, gb));
-            match part {
-                None => nb += 1,
-                Some(p) => {
-                    nb += p.nodes.len();
-                    gb += p.groups;
-                }
-            }
+            nb += nodes;
+            gb += groups;
         }
-        let moves_leaves = triangles.is_some();
-        let refs: Vec<u32> = parts
-            .iter()
-            .zip(&bases)
-            .map(|(part, &base)| match part {
-                None => base.0 as u32,
-                Some(p) => relocate(p.root, base, moves_leaves),
-            })
-            .collect();
-        if moves_leaves
+        if has_groups
             && self.groups.capacity() == 0
             && let Some(spare) = spare
         {
@@ -166,52 +157,63 @@ impl<const N: usize> Collapse<'_, N> {
         self.nodes.reserve(nb - node_start);
         self.groups.reserve(gb - group_start);
         // Every item's ranges of the arrays' spare room, split off in layout order:
-        // the top nodes written here, the tasks' ranges handed to them.
+        // the tasks' ranges handed to them, the top nodes written once their
+        // children's references are known.
         let mut node_room = &mut self.nodes.spare_capacity_mut()[..nb - node_start];
         let mut group_room = &mut self.groups.spare_capacity_mut()[..gb - group_start];
         let mut tasks = Vec::new();
-        for ((item, part), base) in items.iter().zip(parts).zip(bases) {
-            let (nodes_here, groups_here) = match &part {
-                None => (1, 0),
-                Some(p) => (p.nodes.len(), p.groups),
-            };
+        let mut tops = Vec::new();
+        for (i, (item, &(nodes_here, groups_here))) in items.iter().zip(&counts).enumerate() {
             let (node_out, rest) = std::mem::take(&mut node_room).split_at_mut(nodes_here);
             node_room = rest;
             let (group_out, rest) = std::mem::take(&mut group_room).split_at_mut(groups_here);
             group_room = rest;
-            match (item, part) {
-                (Top::Node { kids, n, items }, None) => {
-                    node_out[0].write(wide_node(&kids[..*n], |slot| refs[items[slot]]));
-                }
-                (Top::Task(_), Some(p)) => tasks.push((p, base, node_out, group_out)),
-                _ => unreachable!("a task for every subtree item, none for a top node"),
+            match item {
+                Top::Node { .. } => tops.push((i, node_out)),
+                Top::Task(t) => tasks.push((i, *t, bases[i], node_out, group_out)),
             }
         }
-        tasks
+        // Each task's root reference, by item.
+        let roots: Vec<(usize, u32)> = tasks
             .into_par_iter()
             .with_max_len(1)
-            .for_each(|(p, base, node_out, group_out)| {
-                for (out, node) in node_out.iter_mut().zip(&p.nodes) {
-                    let mut node = *node;
-                    // A plain loop, not `array::map` (an out-of-line call in places).
-                    for c in node.children.iter_mut() {
-                        *c = relocate(*c, base, moves_leaves);
-                    }
-                    out.write(node);
-                }
+            .map(|(i, t, base, node_out, group_out)| {
+                let mut sink = SliceNodes {
+                    out: node_out,
+                    used: 0,
+                    base: base.0,
+                };
+                let mut pending = PendingLeaves {
+                    leaves: Vec::new(),
+                    groups: base.1,
+                };
+                let root = collapse_nodes(t, triangles.is_some(), &mut sink, &mut pending);
+                assert_eq!(sink.used, sink.out.len(), "every counted node written");
                 if let Some(tris) = triangles {
                     let mut out = group_out.iter_mut();
-                    for_each_group(tris, ids, &p.leaves, |g| {
+                    for_each_group(tris, ids, &pending.leaves, |g| {
                         out.next().expect("room for every group").write(g);
                     });
-                    assert!(out.next().is_none(), "every group written");
+                    assert!(out.next().is_none(), "every counted group written");
                 }
-            });
+                (i, root)
+            })
+            .collect();
+        let mut refs: Vec<u32> = bases.iter().map(|b| b.0 as u32).collect();
+        for (i, r) in roots {
+            refs[i] = r;
+        }
+        for (i, node_out) in tops {
+            let Top::Node { kids, n, items } = &items[i] else {
+                unreachable!("top nodes only")
+            };
+            node_out[0].write(wide_node(&kids[..*n], |slot| refs[items[slot]]));
+        }
         // SAFETY: the first `nb - node_start` and `gb - group_start` slots of the
         // arrays' spare room were split into the items' ranges above, in order and with
-        // nothing left over; each top node's range was written in the loop, and each
-        // task wrote every slot of its node range (a copy of as many nodes) and of its
-        // group range (as many groups as its leaves' count, asserted).
+        // nothing left over; each top node's one-slot range was written in the loop
+        // just above, and each task wrote every slot of its node range and of its group
+        // range (asserted: as many nodes and groups as its counts).
         unsafe {
             self.nodes.set_len(nb);
             self.groups.set_len(gb);
@@ -266,46 +268,128 @@ impl<const N: usize> Collapse<'_, N> {
     }
 
     fn collapse_nodes(&mut self, node: &BuildNode, pending: &mut PendingLeaves) -> u32 {
-        let BuildNode::Interior { children, .. } = node else {
-            let BuildNode::Leaf { start, count, .. } = node else {
-                unreachable!()
-            };
-            return self.leaf(*start as usize, *count as usize, pending);
-        };
-        let (kids, n) = open_children::<N>(children);
-        let kids = &kids[..n];
-        let index = self.nodes.len();
-        self.nodes.push(BvhNode::EMPTY);
-        let mut refs = [EMPTY_CHILD; N];
-        for (slot, k) in kids.iter().enumerate() {
-            refs[slot] = self.collapse_nodes(k, pending);
-        }
-        self.nodes[index] = wide_node(kids, |slot| refs[slot]);
-        index as u32
+        collapse_nodes(node, self.triangles.is_some(), &mut self.nodes, pending)
+    }
+}
+
+/// Where a node pass writes its nodes: a node's index is claimed before its children's
+/// (the serial layout: a node, then each child's subtree) and its value put there once
+/// they are done.
+trait NodeSink<const N: usize> {
+    /// The next node's index in the final array.
+    fn claim(&mut self) -> usize;
+    fn put(&mut self, index: usize, node: BvhNode<N>);
+}
+
+/// The serial pass pushes onto the whole array.
+impl<const N: usize> NodeSink<N> for LargeVec<BvhNode<N>> {
+    #[inline(always)]
+    fn claim(&mut self) -> usize {
+        let index = self.len();
+        self.push(BvhNode::EMPTY);
+        index
     }
 
-    /// A leaf's reference; a triangle leaf takes the next group indices and is
-    /// recorded in `pending` for [`Collapse::gather`].
-    fn leaf(&mut self, first: usize, count: usize, pending: &mut PendingLeaves) -> u32 {
-        if self.triangles.is_none() {
-            assert!(
-                count < 16 && first <= FIRST_MASK as usize,
-                "leaf exceeds the reference encoding"
-            );
-            return LEAF | (count as u32) << COUNT_SHIFT | first as u32;
+    #[inline(always)]
+    fn put(&mut self, index: usize, node: BvhNode<N>) {
+        self[index] = node;
+    }
+}
+
+/// A parallel task's range of the final array's room (`out`, starting at node `base`),
+/// of which the first `used` slots are claimed.
+struct SliceNodes<'o, const N: usize> {
+    out: &'o mut [MaybeUninit<BvhNode<N>>],
+    used: usize,
+    base: usize,
+}
+
+impl<const N: usize> NodeSink<N> for SliceNodes<'_, N> {
+    #[inline(always)]
+    fn claim(&mut self) -> usize {
+        assert!(self.used < self.out.len(), "more nodes than counted");
+        self.used += 1;
+        self.base + self.used - 1
+    }
+
+    #[inline(always)]
+    fn put(&mut self, index: usize, node: BvhNode<N>) {
+        self.out[index - self.base].write(node);
+    }
+}
+
+/// The node pass over `node`'s subtree: its nodes into `sink`, its triangle leaves
+/// (`groups`; else scalar leaves, which index the primitive order directly) recorded
+/// in `pending` with the next group indices; returns its reference.
+fn collapse_nodes<const N: usize>(
+    node: &BuildNode,
+    groups: bool,
+    sink: &mut impl NodeSink<N>,
+    pending: &mut PendingLeaves,
+) -> u32 {
+    let BuildNode::Interior { children, .. } = node else {
+        let BuildNode::Leaf { start, count, .. } = node else {
+            unreachable!()
+        };
+        return leaf(*start as usize, *count as usize, groups, pending);
+    };
+    let (kids, n) = open_children::<N>(children);
+    let kids = &kids[..n];
+    let index = sink.claim();
+    let mut refs = [EMPTY_CHILD; N];
+    for (slot, k) in kids.iter().enumerate() {
+        refs[slot] = collapse_nodes(k, groups, sink, pending);
+    }
+    sink.put(index, wide_node(kids, |slot| refs[slot]));
+    index as u32
+}
+
+/// What [`collapse_nodes`] makes of `node`'s subtree, counted without writing it:
+/// (nodes, triangle groups; none for scalar leaves, `groups` false).
+fn count<const N: usize>(node: &BuildNode, groups: bool) -> (usize, usize) {
+    match node {
+        BuildNode::Leaf { count, .. } => (
+            0,
+            if groups {
+                count.div_ceil(4) as usize
+            } else {
+                0
+            },
+        ),
+        BuildNode::Interior { children, .. } => {
+            let (kids, n) = open_children::<N>(children);
+            let mut total = (1, 0);
+            for k in &kids[..n] {
+                let (nodes, g) = count::<N>(k, groups);
+                total.0 += nodes;
+                total.1 += g;
+            }
+            total
         }
-        let start = pending.groups;
-        let ngroups = count.div_ceil(4);
+    }
+}
+
+/// A leaf's reference; a triangle leaf (`groups`) takes the next group indices and is
+/// recorded in `pending` for [`Collapse::gather`].
+fn leaf(first: usize, count: usize, groups: bool, pending: &mut PendingLeaves) -> u32 {
+    if !groups {
         assert!(
-            ngroups < 16 && start <= FIRST_MASK as usize,
+            count < 16 && first <= FIRST_MASK as usize,
             "leaf exceeds the reference encoding"
         );
-        // `first + count` is at most the primitive count, below 2^32 (the builder's
-        // limit).
-        pending.leaves.push((first as u32, count as u32));
-        pending.groups += ngroups;
-        LEAF | (ngroups as u32) << COUNT_SHIFT | start as u32
+        return LEAF | (count as u32) << COUNT_SHIFT | first as u32;
     }
+    let start = pending.groups;
+    let ngroups = count.div_ceil(4);
+    assert!(
+        ngroups < 16 && start <= FIRST_MASK as usize,
+        "leaf exceeds the reference encoding"
+    );
+    // `first + count` is at most the primitive count, below 2^32 (the builder's
+    // limit).
+    pending.leaves.push((first as u32, count as u32));
+    pending.groups += ngroups;
+    LEAF | (ngroups as u32) << COUNT_SHIFT | start as u32
 }
 
 /// The N-wide node over the build nodes `kids` (at most N): their boxes as the slots'
@@ -366,15 +450,6 @@ enum Top<'t, const N: usize> {
     Task(&'t BuildNode),
 }
 
-/// A task's subtree collapsed alone: its nodes and its root's reference (node and
-/// group indices from 0), its triangle leaves' ranges and their group count.
-struct Part<const N: usize> {
-    nodes: LargeVec<BvhNode<N>>,
-    leaves: Vec<(u32, u32)>,
-    groups: usize,
-    root: u32,
-}
-
 /// Lays out the top `levels` levels of the collapse of `node` into `items` (a node,
 /// then each child's items, as the serial collapse lays them); returns `node`'s item.
 fn plan<'t, const N: usize>(
@@ -402,53 +477,6 @@ fn plan<'t, const N: usize>(
         _ => items.push(Top::Task(node)),
     }
     i
-}
-
-/// The range of the primitive order a build subtree's leaves cover (its first leaf's
-/// start to its last leaf's end: the builder gives a subtree one contiguous range).
-fn prim_range(node: &BuildNode) -> (u32, u32) {
-    let mut first = node;
-    while let BuildNode::Interior { children, .. } = first {
-        first = &children[0];
-    }
-    let mut last = node;
-    while let BuildNode::Interior { children, .. } = last {
-        last = &children[1];
-    }
-    let (
-        BuildNode::Leaf { start, .. },
-        BuildNode::Leaf {
-            start: s, count, ..
-        },
-    ) = (first, last)
-    else {
-        unreachable!("the walks end at leaves")
-    };
-    (*start, s + count)
-}
-
-/// Reference `r` of a part collapsed alone, moved to the part's place in the final
-/// arrays (`base`: its first node and first group). Scalar leaves (`moves_leaves`
-/// false) index the permuted primitives directly and never move.
-#[inline(always)]
-fn relocate(r: u32, base: (usize, usize), moves_leaves: bool) -> u32 {
-    if r == EMPTY_CHILD || (is_leaf(r) && !moves_leaves) {
-        r
-    } else if is_leaf(r) {
-        let first = (r & FIRST_MASK) as usize + base.1;
-        assert!(
-            first <= FIRST_MASK as usize,
-            "leaf exceeds the reference encoding"
-        );
-        r & !FIRST_MASK | first as u32
-    } else {
-        let index = r as usize + base.0;
-        assert!(
-            index < LEAF as usize,
-            "node index exceeds the reference encoding"
-        );
-        index as u32
-    }
 }
 
 /// The children of an interior node with children `children`: the two, then the
@@ -609,6 +637,46 @@ mod tests {
         c.nodes.len()
     }
 
+    /// The counting walk the parallel collapse sizes its tasks' ranges by gives, for
+    /// every subtree down to the third level, exactly the nodes and groups the serial
+    /// node pass writes for it (triangle leaves in groups, and scalar leaves: none),
+    /// 8 and 4 wide.
+    #[test]
+    fn counts_match_the_serial_node_pass_on_every_subtree() {
+        fn subtrees<'t>(node: &'t BuildNode, depth: usize, out: &mut Vec<&'t BuildNode>) {
+            out.push(node);
+            if let (BuildNode::Interior { children, .. }, true) = (node, depth > 0) {
+                subtrees(&children[0], depth - 1, out);
+                subtrees(&children[1], depth - 1, out);
+            }
+        }
+        fn check<const N: usize>(tree: &BuildNode, ids: &[u32], tris: &Triangles) {
+            let mut nodes = Vec::new();
+            subtrees(tree, 3, &mut nodes);
+            assert!(nodes.len() >= 15);
+            for (i, t) in nodes.into_iter().enumerate() {
+                for groups in [true, false] {
+                    let mut c = Collapse::<N> {
+                        ids,
+                        triangles: groups.then_some(tris),
+                        nodes: LargeVec::new(),
+                        groups: LargeVec::new(),
+                    };
+                    let mut pending = PendingLeaves::default();
+                    c.collapse_nodes(t, &mut pending);
+                    let want = (c.nodes.len(), if groups { pending.groups } else { 0 });
+                    assert_eq!(count::<N>(t, groups), want, "N = {N}, subtree {i}");
+                    assert!(!groups || pending.groups > 0);
+                }
+            }
+        }
+        let tris = mesh(20_000);
+        let (tree, ids) = build_tree(&tris, wide_build_options(true));
+        let tree = tree.expect("non-empty");
+        check::<8>(&tree, &ids, &tris);
+        check::<4>(&tree, &ids, &tris);
+    }
+
     /// Both passes together lay out every bit of the nodes and groups as the one-pass
     /// collapse with `max_by` did, serial and with parallel levels, 4 and 8 wide.
     #[test]
@@ -626,7 +694,7 @@ mod tests {
     }
 
     /// A whole build at two threads (the top of the collapse laid out first, its
-    /// subtrees written by tasks straight into the final arrays; the build tree freed
+    /// subtrees counted, then written by tasks straight into their final ranges; the build tree freed
     /// in parallel tasks) gives every bit of the one-thread build's nodes and groups,
     /// 8 and 4 wide, and the same statistics.
     #[test]

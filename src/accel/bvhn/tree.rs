@@ -177,7 +177,7 @@ where
         let root = match &tree {
             None => EMPTY_CHILD,
             // One thread gains nothing from the parallel levels and pays for them: each
-            // subtree collapses its nodes into an array of its own that is then copied.
+            // task's subtree is walked twice, once to count its nodes and groups.
             Some(t) => {
                 let levels = if parallel {
                     PARALLEL_COLLAPSE_LEVELS
