@@ -101,7 +101,7 @@ use super::Bvh2BuildOptions;
 use super::Primitives;
 use super::build_arena::{Arena, ArenaRef, Cursor};
 use crate::geometry::Aabb;
-use crate::pages::{ALWAYS_MAPPED_BYTES, advise_huge_pages};
+use crate::pages::{ALWAYS_MAPPED_BYTES, advise_huge_pages, zeroed_vec};
 use crate::simd::bin_box::BinBox;
 use crate::simd::bin_index;
 use crate::simd::box_areas;
@@ -752,15 +752,8 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
     }
     let layout = std::alloc::Layout::array::<PrimRef>(n).expect("reference array size");
     if layout.size() >= ALWAYS_MAPPED_BYTES {
-        // SAFETY: `layout` has a non-zero size (n > 0, PrimRef is 32 bytes).
-        let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<PrimRef>();
-        if ptr.is_null() {
-            std::alloc::handle_alloc_error(layout);
-        }
-        advise_huge_pages(ptr.cast(), layout.size());
-        // SAFETY: allocated by the global allocator with the layout of `n` PrimRefs,
-        // and all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
-        return unsafe { Vec::from_raw_parts(ptr, n, n) };
+        // SAFETY: all-zero bytes are a valid PrimRef (four 0.0 lanes twice).
+        return unsafe { zeroed_vec(n) };
     }
     // A smaller block may come from the heap, which `calloc` clears with `memset`
     // before the advice could be given: advised first, then zeroed here (in parallel
@@ -792,19 +785,8 @@ fn zeroed_refs(n: usize) -> Vec<PrimRef> {
 /// the leaf closure of `Builder::build` and the arena's chunks, `accel::build_arena`);
 /// in the host's slow state a fresh 4 KiB page costs 5-40 us to touch.
 fn zeroed_ids(n: usize) -> Vec<u32> {
-    if n == 0 {
-        return Vec::new();
-    }
-    let layout = std::alloc::Layout::array::<u32>(n).expect("index array size");
-    // SAFETY: `layout` has a non-zero size (n > 0).
-    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<u32>();
-    if ptr.is_null() {
-        std::alloc::handle_alloc_error(layout);
-    }
-    advise_huge_pages(ptr.cast(), layout.size());
-    // SAFETY: allocated by the global allocator with the layout of `n` u32s (a `Vec`'s
-    // buffer of capacity `n`), all zero.
-    unsafe { Vec::from_raw_parts(ptr, n, n) }
+    // SAFETY: all-zero bytes are a valid u32.
+    unsafe { zeroed_vec(n) }
 }
 
 /// Bounds and centroid bounds of `refs`.

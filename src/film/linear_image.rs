@@ -2,7 +2,7 @@
 
 use super::color::linear_to_srgb8;
 use crate::error::{Error, Result};
-use crate::pages::{advise_huge_pages, commit_for_writing};
+use crate::pages::{commit_for_writing, try_zeroed_vec, zeroed_vec};
 use glam::Vec3;
 
 /// Linear RGB radiance per pixel, row 0 at the top.
@@ -175,29 +175,18 @@ fn film_bytes(width: u32, height: u32) -> usize {
     width as usize * height as usize * std::mem::size_of::<Vec3>()
 }
 
-/// `n` black pixels, allocated zeroed rather than filled; aborts where the memory
-/// cannot be had (as `Vec` does).
+/// `n` black pixels, allocated zeroed rather than filled (`pages::zeroed_vec`: advised
+/// for huge pages before their first touch, measured on `pages::advise_huge_pages`);
+/// aborts where the memory cannot be had (as `Vec` does).
 fn zeroed_pixels(n: usize) -> Vec<Vec3> {
-    try_zeroed_pixels(n).unwrap_or_else(|layout| std::alloc::handle_alloc_error(layout))
+    // SAFETY: all-zero bytes are a valid Vec3 (0.0 thrice; asserted above).
+    unsafe { zeroed_vec(n) }
 }
 
 /// [`zeroed_pixels`], or the layout the allocator refused.
 fn try_zeroed_pixels(n: usize) -> std::result::Result<Vec<Vec3>, std::alloc::Layout> {
-    if n == 0 {
-        return Ok(Vec::new());
-    }
-    let layout = std::alloc::Layout::array::<Vec3>(n).expect("pixel array size");
-    // SAFETY: `layout` has a non-zero size (n > 0, Vec3 is 12 bytes).
-    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<Vec3>();
-    if ptr.is_null() {
-        return Err(layout);
-    }
-    // Before the first touch: the whole 2 MiB pages of a large frame as huge pages
-    // (measured on `pages::advise_huge_pages`).
-    advise_huge_pages(ptr.cast(), layout.size());
-    // SAFETY: allocated by the global allocator with the layout of `n` Vec3s (the
-    // layout `Vec<Vec3>` frees with), and all-zero bytes are a valid Vec3 (0.0 thrice).
-    Ok(unsafe { Vec::from_raw_parts(ptr, n, n) })
+    // SAFETY: all-zero bytes are a valid Vec3 (asserted above).
+    unsafe { try_zeroed_vec(n) }
 }
 
 #[cfg(test)]
