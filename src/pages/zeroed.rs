@@ -16,7 +16,8 @@ pub(crate) unsafe fn try_zeroed_vec<T>(n: usize) -> Result<Vec<T>, Layout> {
     if n == 0 {
         return Ok(Vec::new());
     }
-    let layout = Layout::array::<T>(n).map_err(|_| Layout::new::<T>())?;
+    // An impossible size is a bug in the caller, as for `Vec`, not a refusal.
+    let layout = Layout::array::<T>(n).expect("array size overflows");
     // SAFETY: `layout` has a non-zero size (n > 0, T not zero-sized).
     let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<T>();
     if ptr.is_null() {
